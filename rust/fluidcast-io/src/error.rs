@@ -1,0 +1,39 @@
+use std::path::{Path, PathBuf};
+
+/// A file could not be read; `Display` names the file and the problem.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {kind}", path.display())]
+pub struct ReadError {
+    /// The file at fault.
+    pub path: PathBuf,
+    /// What was wrong with it.
+    pub kind: ReadErrorKind,
+}
+
+impl ReadError {
+    pub fn new(path: impl AsRef<Path>, kind: ReadErrorKind) -> Self {
+        ReadError {
+            path: path.as_ref().to_path_buf(),
+            kind,
+        }
+    }
+}
+
+/// The problem with a file.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadErrorKind {
+    #[error("cannot read file: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("unsupported file extension '{0}' (expected .vtu, .vtp, .vtk or .pvd)")]
+    UnsupportedExtension(String),
+    #[error("malformed XML: {0}")]
+    Xml(String),
+    #[error("{0}")]
+    Format(String),
+    #[error("array '{array}': {problem}")]
+    Array { array: String, problem: String },
+    #[error("truncated file: {0}")]
+    Truncated(String),
+    #[error("the VTK reader library failed: {0}")]
+    Library(String),
+}

@@ -1,0 +1,306 @@
+//! Reading SPH particle output from VTK files.
+//!
+//! Supported inputs:
+//! * VTK XML `.vtu` (UnstructuredGrid) and `.vtp` (PolyData), every encoding VTK and
+//!   ParaView write: ascii, inline base64, appended base64, appended raw; uncompressed or
+//!   zlib / lz4 / lzma compressed; UInt32 or UInt64 headers; little or big endian; XML
+//!   version 0.1 files whose base64 header and data are padded separately (pyvisfile).
+//!   These are read by our own parser ([`xml`]) because vtkio 0.7.0-rc2 rejects appended
+//!   raw data, zlib arrays with a full last block, multi-block lzma arrays and compressed
+//!   `.vtp` files (see `tests/vtkio_faults.rs`).
+//! * `.pvd` collections ([`read_collection`]), each data set with its `timestep`.
+//! * Legacy `.vtk` 4.x and 5.1 (ascii and big-endian binary) through vtkio; a panic inside
+//!   vtkio is caught and reported as an error naming the file.
+//!
+//! Only the points, the point data and the field data are kept: cells are irrelevant for
+//! mesh-free particles (every point is a particle, whatever cells reference it).
+
+mod error;
+mod legacy;
+mod pvd;
+pub mod xml;
+
+use std::path::{Path, PathBuf};
+
+pub use error::{ReadError, ReadErrorKind};
+pub use pvd::{read_collection, Collection, CollectionEntry};
+
+/// The numeric type an array had in the file. Values are always held as `f64`, which
+/// represents every type exactly except 64-bit integers above 2^53.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ScalarType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+}
+
+impl ScalarType {
+    /// Parses a VTK XML type name (`Float32`, `UInt64`, …; also the legacy names
+    /// `float`, `double`, `int`, `unsigned_char`, … and VTK 4 XML aliases).
+    pub fn from_vtk_name(name: &str) -> Option<ScalarType> {
+        use ScalarType::*;
+        Some(match name {
+            "Int8" | "char" | "signed_char" => I8,
+            "UInt8" | "unsigned_char" | "bit" => U8,
+            "Int16" | "short" => I16,
+            "UInt16" | "unsigned_short" => U16,
+            "Int32" | "int" => I32,
+            "UInt32" | "unsigned_int" => U32,
+            "Int64" | "long" | "vtktypeint64" | "long_long" | "vtkIdType" => I64,
+            "UInt64" | "unsigned_long" | "vtktypeuint64" | "unsigned_long_long" => U64,
+            "Float32" | "float" => F32,
+            "Float64" | "double" => F64,
+            _ => return None,
+        })
+    }
+
+    /// Size of one value in bytes.
+    pub fn size(self) -> usize {
+        use ScalarType::*;
+        match self {
+            I8 | U8 => 1,
+            I16 | U16 => 2,
+            I32 | U32 | F32 => 4,
+            I64 | U64 | F64 => 8,
+        }
+    }
+
+    /// The VTK XML name of this type.
+    pub fn vtk_name(self) -> &'static str {
+        use ScalarType::*;
+        match self {
+            I8 => "Int8",
+            U8 => "UInt8",
+            I16 => "Int16",
+            U16 => "UInt16",
+            I32 => "Int32",
+            U32 => "UInt32",
+            I64 => "Int64",
+            U64 => "UInt64",
+            F32 => "Float32",
+            F64 => "Float64",
+        }
+    }
+
+    /// Decodes `bytes` (a whole number of values) into `f64`s.
+    pub fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
+        use ScalarType::*;
+        let n = self.size();
+        let mut out = Vec::with_capacity(bytes.len() / n);
+        macro_rules! conv {
+            ($t:ty) => {
+                for c in bytes.chunks_exact(n) {
+                    let a: [u8; std::mem::size_of::<$t>()] = c.try_into().unwrap();
+                    let v = if big_endian {
+                        <$t>::from_be_bytes(a)
+                    } else {
+                        <$t>::from_le_bytes(a)
+                    };
+                    out.push(v as f64);
+                }
+            };
+        }
+        match self {
+            I8 => conv!(i8),
+            U8 => conv!(u8),
+            I16 => conv!(i16),
+            U16 => conv!(u16),
+            I32 => conv!(i32),
+            U32 => conv!(u32),
+            I64 => conv!(i64),
+            U64 => conv!(u64),
+            F32 => conv!(f32),
+            F64 => conv!(f64),
+        }
+        out
+    }
+}
+
+/// One named array of tuples (point data or field data).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DataArray {
+    /// The array's `Name` in the file.
+    pub name: String,
+    /// The type the values had in the file.
+    pub scalar_type: ScalarType,
+    /// Components per tuple (3 for a vector).
+    pub num_components: usize,
+    /// Values, tuple after tuple (`num_tuples() * num_components` of them).
+    pub values: Vec<f64>,
+}
+
+impl DataArray {
+    /// Number of tuples.
+    pub fn num_tuples(&self) -> usize {
+        self.values.len() / self.num_components.max(1)
+    }
+
+    /// Minimum and maximum over all values (NaN ignored); `None` when empty or all NaN.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        range_of(self.values.iter().copied())
+    }
+
+    /// Range of the Euclidean norm of the tuples (VTK's "Magnitude").
+    pub fn magnitude_range(&self) -> Option<(f64, f64)> {
+        let nc = self.num_components.max(1);
+        range_of(
+            self.values
+                .chunks_exact(nc)
+                .map(|t| t.iter().map(|v| v * v).sum::<f64>().sqrt()),
+        )
+    }
+}
+
+fn range_of(it: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let mut r: Option<(f64, f64)> = None;
+    for v in it.filter(|v| !v.is_nan()) {
+        r = Some(match r {
+            None => (v, v),
+            Some((a, b)) => (a.min(v), b.max(v)),
+        });
+    }
+    r
+}
+
+/// The kind of VTK data set the particles came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DatasetKind {
+    UnstructuredGrid,
+    PolyData,
+}
+
+/// Particles as read from one file: points, point data and field data, in world space
+/// (the file's own units and axes).
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    /// The file this came from (used in every error message about it).
+    pub path: PathBuf,
+    pub kind: DatasetKind,
+    /// Point coordinates; all pieces of the file concatenated.
+    pub points: Vec<[f64; 3]>,
+    /// Point data arrays, each with one tuple per point.
+    pub point_data: Vec<DataArray>,
+    /// Field data arrays (e.g. `TIME`, `support_radius`), any number of tuples.
+    pub field_data: Vec<DataArray>,
+}
+
+impl Dataset {
+    /// The point array called `name`.
+    pub fn point_array(&self, name: &str) -> Option<&DataArray> {
+        self.point_data.iter().find(|a| a.name == name)
+    }
+
+    /// The field-data array called `name`.
+    pub fn field_array(&self, name: &str) -> Option<&DataArray> {
+        self.field_data.iter().find(|a| a.name == name)
+    }
+
+    /// First value of a field-data array, e.g. `support_radius` or `TIME`.
+    pub fn field_scalar(&self, name: &str) -> Option<f64> {
+        self.field_array(name).and_then(|a| a.values.first().copied())
+    }
+
+    /// Axis-aligned bounds of the finite points, `None` if there are none.
+    pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut any = false;
+        for p in self.points.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
+            any = true;
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        any.then_some((lo, hi))
+    }
+}
+
+/// Reads one particle file, choosing the format by extension (`.vtu`, `.vtp`, `.vtk`).
+///
+/// Point-data arrays whose tuple count differs from the point count are an error, as are
+/// files with structural problems; every error names the file.
+pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
+    let path = path.as_ref();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default();
+    let bytes = std::fs::read(path).map_err(|e| ReadError::new(path, ReadErrorKind::Io(e)))?;
+    let ds = match ext.as_str() {
+        "vtu" | "vtp" => xml::parse(&bytes, path),
+        "vtk" => legacy::parse(&bytes, path),
+        "pvd" => Err(ReadError::new(
+            path,
+            ReadErrorKind::Format("a .pvd is a collection: read it with read_collection".into()),
+        )),
+        _ => Err(ReadError::new(path, ReadErrorKind::UnsupportedExtension(ext.clone()))),
+    }?;
+    validate(&ds)?;
+    Ok(ds)
+}
+
+fn validate(ds: &Dataset) -> Result<(), ReadError> {
+    let n = ds.points.len();
+    for a in &ds.point_data {
+        if a.num_components == 0 || a.values.len() != n * a.num_components {
+            return Err(ReadError::new(
+                &ds.path,
+                ReadErrorKind::Format(format!(
+                    "point array '{}' has {} values with {} components, but there are {} points",
+                    a.name,
+                    a.values.len(),
+                    a.num_components,
+                    n
+                )),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// What a user pointed the tool at: one file or a time series.
+#[derive(Debug, Clone)]
+pub enum Input {
+    /// A single `.vtu`/`.vtp`/`.vtk` file.
+    File(PathBuf),
+    /// A `.pvd` collection, entries sorted by time.
+    Series(Collection),
+}
+
+impl Input {
+    /// Opens `path`: a `.pvd` is read as a collection (not its data sets yet), anything
+    /// else is a single file.
+    pub fn open(path: impl AsRef<Path>) -> Result<Input, ReadError> {
+        let path = path.as_ref();
+        if path.extension().and_then(|e| e.to_str()).map(|e| e.eq_ignore_ascii_case("pvd")) == Some(true)
+        {
+            Ok(Input::Series(read_collection(path)?))
+        } else {
+            if !path.exists() {
+                return Err(ReadError::new(
+                    path,
+                    ReadErrorKind::Io(std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")),
+                ));
+            }
+            Ok(Input::File(path.to_path_buf()))
+        }
+    }
+
+    /// Frames as (time, file); a single file has one frame at the time in its `TIME` field
+    /// data if the caller reads it, reported here as `None`.
+    pub fn frames(&self) -> Vec<(Option<f64>, PathBuf)> {
+        match self {
+            Input::File(p) => vec![(None, p.clone())],
+            Input::Series(c) => c.entries.iter().map(|e| (Some(e.timestep), e.file.clone())).collect(),
+        }
+    }
+}

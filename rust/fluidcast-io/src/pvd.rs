@@ -1,0 +1,75 @@
+use std::path::{Path, PathBuf};
+
+use quick_xml::events::Event;
+
+use crate::{xml::attrs, ReadError, ReadErrorKind};
+
+/// One data set of a `.pvd` collection.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CollectionEntry {
+    /// The `timestep` attribute (simulation time; 0 when absent).
+    pub timestep: f64,
+    /// `part` attribute (0 when absent).
+    pub part: u32,
+    /// The data set's file, resolved relative to the `.pvd`'s folder.
+    pub file: PathBuf,
+}
+
+/// A ParaView `.pvd` collection: a time series of particle files.
+#[derive(Debug, Clone)]
+pub struct Collection {
+    pub path: PathBuf,
+    /// Entries sorted by time step (ParaView's order), stable for equal times.
+    pub entries: Vec<CollectionEntry>,
+}
+
+/// Reads a `.pvd` file's `<DataSet>` list (it does not open the data sets).
+pub fn read_collection(path: impl AsRef<Path>) -> Result<Collection, ReadError> {
+    let path = path.as_ref();
+    let err = |k| ReadError::new(path, k);
+    let bytes = std::fs::read(path).map_err(|e| err(ReadErrorKind::Io(e)))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let mut reader = quick_xml::Reader::from_reader(bytes.as_slice());
+    let mut entries = Vec::new();
+    let mut saw_collection = false;
+    loop {
+        match reader.read_event().map_err(|e| err(ReadErrorKind::Xml(e.to_string())))? {
+            Event::Start(e) | Event::Empty(e) => match e.name().as_ref() {
+                b"Collection" => saw_collection = true,
+                b"DataSet" => {
+                    let a = attrs(&e).map_err(|m| err(ReadErrorKind::Xml(m)))?;
+                    let file = a
+                        .get("file")
+                        .ok_or_else(|| err(ReadErrorKind::Format("<DataSet> without a 'file' attribute".into())))?;
+                    let timestep = match a.get("timestep") {
+                        Some(t) => t
+                            .trim()
+                            .parse::<f64>()
+                            .map_err(|_| err(ReadErrorKind::Format(format!("bad timestep '{t}' for {file}"))))?,
+                        None => 0.0,
+                    };
+                    let part = a.get("part").and_then(|p| p.trim().parse().ok()).unwrap_or(0);
+                    entries.push(CollectionEntry {
+                        timestep,
+                        part,
+                        file: dir.join(file),
+                    });
+                }
+                _ => {}
+            },
+            Event::Eof => break,
+            _ => {}
+        }
+    }
+    if !saw_collection {
+        return Err(err(ReadErrorKind::Format("not a .pvd collection (no <Collection> element)".into())));
+    }
+    if entries.is_empty() {
+        return Err(err(ReadErrorKind::Format("the collection lists no data sets".into())));
+    }
+    entries.sort_by(|a, b| a.timestep.total_cmp(&b.timestep));
+    Ok(Collection {
+        path: path.to_path_buf(),
+        entries,
+    })
+}
