@@ -1,1 +1,15 @@
+//! SPH particles, smoothing kernels, neighbour search and field reconstruction.
+//!
+//! Conventions: every kernel is parametrised by its **support radius** `H` (world units):
+//! `W(r, H) = 0` for `r >= H`, and `∫ W dV = 1` over 3D space. Classic smoothing lengths
+//! relate as `H = 2h` (cubic spline, Wendland), `H = 3h` (quintic M6) — see [`Kernel`].
 
+mod field;
+mod grid;
+mod kernel;
+mod particles;
+
+pub use field::{FieldKind, FieldSample};
+pub use grid::NeighbourGrid;
+pub use kernel::Kernel;
+pub use particles::{suggest_support_radius, Component, ParticleError, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource};

@@ -1,0 +1,94 @@
+/// A uniform world-space grid over particle positions for fixed-radius neighbour queries.
+///
+/// Particles are sorted by cell (counting sort); each cell stores a range into the sorted
+/// index list. Queries with a radius up to the cell size visit 3×3×3 cells.
+#[derive(Debug, Clone)]
+pub struct NeighbourGrid {
+    origin: [f32; 3],
+    cell: f32,
+    dims: [usize; 3],
+    /// `starts[c]..starts[c+1]` indexes `indices` for cell `c`.
+    starts: Vec<u32>,
+    indices: Vec<u32>,
+    positions: Vec<[f32; 3]>,
+}
+
+impl NeighbourGrid {
+    /// Builds the grid with the given cell size (world units, > 0). The cell size is grown
+    /// if the grid would need far more cells than there are particles.
+    pub fn new(positions: &[[f32; 3]], cell_size: f32) -> NeighbourGrid {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for p in positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if positions.is_empty() {
+            lo = [0.0; 3];
+            hi = [0.0; 3];
+        }
+        let mut cell = cell_size.max(f32::MIN_POSITIVE);
+        let budget = (positions.len() * 8 + 64) as f64;
+        let dims = loop {
+            let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
+            if (d[0] as f64) * (d[1] as f64) * (d[2] as f64) <= budget {
+                break d;
+            }
+            cell *= 1.5;
+        };
+        let ncell = dims[0] * dims[1] * dims[2];
+        let cid = |p: &[f32; 3]| -> usize {
+            let c = [0, 1, 2].map(|k| (((p[k] - lo[k]) / cell) as usize).min(dims[k] - 1));
+            (c[0] * dims[1] + c[1]) * dims[2] + c[2]
+        };
+        let mut counts = vec![0u32; ncell + 1];
+        let ids: Vec<usize> = positions.iter().map(cid).collect();
+        for &c in &ids {
+            counts[c + 1] += 1;
+        }
+        for i in 0..ncell {
+            counts[i + 1] += counts[i];
+        }
+        let mut fill = counts.clone();
+        let mut indices = vec![0u32; positions.len()];
+        for (i, &c) in ids.iter().enumerate() {
+            indices[fill[c] as usize] = i as u32;
+            fill[c] += 1;
+        }
+        NeighbourGrid { origin: lo, cell, dims, starts: counts, indices, positions: positions.to_vec() }
+    }
+
+    /// Calls `f(index, squared distance)` for every particle within `radius` of `x`.
+    #[inline]
+    pub fn for_each_near(&self, x: [f32; 3], radius: f32, mut f: impl FnMut(u32, f32)) {
+        let r2 = radius * radius;
+        let mut lo = [0usize; 3];
+        let mut hi = [0usize; 3];
+        for k in 0..3 {
+            let a = ((x[k] - radius - self.origin[k]) / self.cell).floor();
+            let b = ((x[k] + radius - self.origin[k]) / self.cell).floor();
+            if b < 0.0 || a >= self.dims[k] as f32 {
+                return;
+            }
+            lo[k] = a.max(0.0) as usize;
+            hi[k] = (b as usize).min(self.dims[k] - 1);
+        }
+        for cx in lo[0]..=hi[0] {
+            for cy in lo[1]..=hi[1] {
+                let base = (cx * self.dims[1] + cy) * self.dims[2];
+                let s = self.starts[base + lo[2]] as usize;
+                let e = self.starts[base + hi[2] + 1] as usize;
+                for &j in &self.indices[s..e] {
+                    let p = self.positions[j as usize];
+                    let d = [p[0] - x[0], p[1] - x[1], p[2] - x[2]];
+                    let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    if d2 < r2 {
+                        f(j, d2);
+                    }
+                }
+            }
+        }
+    }
+}
