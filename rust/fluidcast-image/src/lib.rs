@@ -1,1 +1,239 @@
+//! RGBA float images with a depth channel: EXR and PNG output, reading back, comparison.
+//!
+//! Rows are stored top row first (PNG/EXR order); pixel (i, j) covers [i, i+1) × [j, j+1)
+//! with j = 0 the top row. Colours are linear, **premultiplied** by alpha.
 
+use std::path::{Path, PathBuf};
+
+use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, WritableImage};
+
+/// An image problem, naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("{file}: {message}")]
+    File { file: PathBuf, message: String },
+    #[error("images differ in size: {0}x{1} vs {2}x{3}")]
+    SizeMismatch(u32, u32, u32, u32),
+    #[error("unsupported image format for '{0}' (use .exr or .png)")]
+    Format(PathBuf),
+}
+
+fn ferr(file: &Path, e: impl std::fmt::Display) -> ImageError {
+    ImageError::File { file: file.to_path_buf(), message: e.to_string() }
+}
+
+/// A rendered image: premultiplied linear RGBA and, per pixel, the view depth (world units
+/// along the camera's forward axis) at which accumulated opacity first exceeded ½, or
+/// +∞ where it never did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<[f32; 4]>,
+    pub depth: Vec<f32>,
+}
+
+impl Image {
+    /// A transparent image with infinite depth.
+    pub fn new(width: u32, height: u32) -> Image {
+        let n = width as usize * height as usize;
+        Image { width, height, rgba: vec![[0.0; 4]; n], depth: vec![f32::INFINITY; n] }
+    }
+
+    /// Pixel index of (i, j), j = 0 at the top.
+    pub fn index(&self, i: u32, j: u32) -> usize {
+        j as usize * self.width as usize + i as usize
+    }
+
+    /// Writes by extension: `.exr` (float RGBA + Z) or `.png` (8-bit sRGB over `background`).
+    pub fn save(&self, path: &Path, background: [f32; 3]) -> Result<(), ImageError> {
+        match ext(path).as_str() {
+            "exr" => self.write_exr(path),
+            "png" => self.write_png(path, background),
+            _ => Err(ImageError::Format(path.to_path_buf())),
+        }
+    }
+
+    /// EXR with channels R, G, B, A (premultiplied, linear) and Z (depth), 32-bit float.
+    pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
+        let ch = |k: usize| FlatSamples::F32(self.rgba.iter().map(|p| p[k]).collect());
+        let channels = AnyChannels::sort(SmallVec::from_vec(vec![
+            AnyChannel::new("R", ch(0)),
+            AnyChannel::new("G", ch(1)),
+            AnyChannel::new("B", ch(2)),
+            AnyChannel::new("A", ch(3)),
+            AnyChannel::new("Z", FlatSamples::F32(self.depth.clone())),
+        ]));
+        let layer = Layer::new(
+            (self.width as usize, self.height as usize),
+            LayerAttributes::named("fluidcast"),
+            Encoding::FAST_LOSSLESS,
+            channels,
+        );
+        exr::prelude::Image::from_layer(layer).write().to_file(path).map_err(|e| ferr(path, e))
+    }
+
+    /// Composites over `background` (linear RGB) and writes 8-bit sRGB PNG (RGB).
+    pub fn write_png(&self, path: &Path, background: [f32; 3]) -> Result<(), ImageError> {
+        let data = self.to_srgb8(background);
+        let f = std::fs::File::create(path).map_err(|e| ferr(path, e))?;
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(f), self.width, self.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(|e| ferr(path, e))?;
+        w.write_image_data(&data).map_err(|e| ferr(path, e))
+    }
+
+    /// 8-bit sRGB RGB bytes over a background.
+    pub fn to_srgb8(&self, background: [f32; 3]) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.rgba.len() * 3);
+        for p in &self.rgba {
+            for k in 0..3 {
+                let c = p[k] + (1.0 - p[3]) * background[k];
+                out.push((linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8);
+            }
+        }
+        out
+    }
+
+    /// Reads an EXR written by [`Image::write_exr`] (R, G, B, A, optional Z) or a PNG
+    /// (8-bit or 16-bit; sRGB decoded to linear, opaque when it has no alpha).
+    pub fn read(path: &Path) -> Result<Image, ImageError> {
+        match ext(path).as_str() {
+            "exr" => {
+                let img = exr::prelude::read_all_flat_layers_from_file(path).map_err(|e| ferr(path, e))?;
+                let layer = img.layer_data.first().ok_or_else(|| ferr(path, "no layers"))?;
+                let (w, h) = (layer.size.0 as u32, layer.size.1 as u32);
+                let mut out = Image::new(w, h);
+                for c in &layer.channel_data.list {
+                    let name = c.name.to_string();
+                    let vals: Vec<f32> = c.sample_data.values_as_f32().collect();
+                    match name.as_str() {
+                        "R" | "G" | "B" | "A" => {
+                            let k = "RGBA".find(&name).unwrap();
+                            for (p, v) in out.rgba.iter_mut().zip(vals) {
+                                p[k] = v;
+                            }
+                        }
+                        "Z" => out.depth = vals,
+                        _ => {}
+                    }
+                }
+                Ok(out)
+            }
+            "png" => {
+                let f = std::fs::File::open(path).map_err(|e| ferr(path, e))?;
+                let mut dec = png::Decoder::new(std::io::BufReader::new(f));
+                dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+                let mut r = dec.read_info().map_err(|e| ferr(path, e))?;
+                let mut buf = vec![0; r.output_buffer_size()];
+                let info = r.next_frame(&mut buf).map_err(|e| ferr(path, e))?;
+                let nc = info.color_type.samples();
+                let mut out = Image::new(info.width, info.height);
+                for (p, px) in out.rgba.iter_mut().zip(buf[..info.buffer_size()].chunks_exact(nc)) {
+                    let g = |k: usize| srgb_to_linear(px[k] as f32 / 255.0);
+                    *p = match nc {
+                        1 => [g(0), g(0), g(0), 1.0],
+                        2 => [g(0), g(0), g(0), px[1] as f32 / 255.0],
+                        3 => [g(0), g(1), g(2), 1.0],
+                        _ => [g(0), g(1), g(2), px[3] as f32 / 255.0],
+                    };
+                }
+                Ok(out)
+            }
+            _ => Err(ImageError::Format(path.to_path_buf())),
+        }
+    }
+}
+
+fn ext(p: &Path) -> String {
+    p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+/// sRGB transfer curve (IEC 61966-2-1).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse of [`linear_to_srgb`].
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Differences between two images over the RGBA channels (values in [0, 1]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Comparison {
+    /// Largest absolute channel difference.
+    pub max_abs: f64,
+    /// Root mean square over all channels of all pixels.
+    pub rmse: f64,
+    /// Share of pixels (0..1) whose largest channel difference exceeds `tolerance`.
+    pub frac_above: f64,
+    /// The tolerance used for `frac_above`.
+    pub tolerance: f64,
+}
+
+/// Compares two images channel by channel; `diff` (if asked) gets |a − b| per pixel as an
+/// opaque image scaled by `1/tolerance` for visibility (clamped).
+pub fn compare(a: &Image, b: &Image, tolerance: f64) -> Result<(Comparison, Image), ImageError> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(ImageError::SizeMismatch(a.width, a.height, b.width, b.height));
+    }
+    let mut max_abs = 0.0f64;
+    let mut sq = 0.0f64;
+    let mut above = 0usize;
+    let mut diff = Image::new(a.width, a.height);
+    for (i, (p, q)) in a.rgba.iter().zip(&b.rgba).enumerate() {
+        let mut m = 0.0f64;
+        for k in 0..4 {
+            let d = (p[k] as f64 - q[k] as f64).abs();
+            m = m.max(d);
+            sq += d * d;
+        }
+        max_abs = max_abs.max(m);
+        above += usize::from(m > tolerance);
+        let v = (m / tolerance.max(1e-12)).min(1.0) as f32;
+        diff.rgba[i] = [v, v, v, 1.0];
+    }
+    let n = a.rgba.len().max(1);
+    Ok((
+        Comparison { max_abs, rmse: (sq / (4 * n) as f64).sqrt(), frac_above: above as f64 / n as f64, tolerance },
+        diff,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exr_round_trip_and_compare() {
+        let dir = std::env::temp_dir().join(format!("fluidcast-img-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut a = Image::new(5, 3);
+        let k = a.index(4, 2);
+        a.rgba[k] = [0.25, 0.5, 0.125, 0.75];
+        a.depth[k] = 2.5;
+        let p = dir.join("a.exr");
+        a.write_exr(&p).unwrap();
+        let b = Image::read(&p).unwrap();
+        assert_eq!(a, b);
+        let mut c = b.clone();
+        c.rgba[0][0] = 0.1;
+        let (cmp, _) = compare(&a, &c, 0.05).unwrap();
+        assert!((cmp.max_abs - 0.1).abs() < 1e-7);
+        assert!((cmp.frac_above - 1.0 / 15.0).abs() < 1e-12);
+        let png = dir.join("a.png");
+        a.write_png(&png, [0.0; 3]).unwrap();
+        let r = Image::read(&png).unwrap();
+        assert!((r.rgba[a.index(4, 2)][1] - 0.5).abs() < 0.01);
+    }
+}

@@ -1,0 +1,217 @@
+use serde_json::Value;
+
+use crate::presets_data::{INFERNO, VIRIDIS};
+
+/// A colour + opacity transfer function, as ParaView's colour-map editor defines one.
+///
+/// Colour control points come from a preset's `RGBPoints` (x, r, g, b, …) and opacity from
+/// `Points` (x, opacity, midpoint, sharpness, …); both are rescaled from the preset's own x
+/// range to the active data range `[lo, hi]`, as ParaView does when it applies a preset.
+/// Values outside the range are clamped; NaN is transparent. Interpolation is linear in RGB
+/// (ParaView's `Diverging`/`Lab` colour spaces are approximated in RGB; opacity midpoint and
+/// sharpness other than 0.5/0 are ignored).
+///
+/// Opacity is given for a path of length `unit_distance` (ParaView's "Scalar Opacity Unit
+/// Distance", world units) and corrected per step: `α(Δs) = 1 − (1 − α)^(Δs / unit)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TransferFunction {
+    pub name: String,
+    /// (x in [0,1], rgb) sorted by x.
+    pub colors: Vec<(f64, [f64; 3])>,
+    /// (x in [0,1], opacity per unit distance) sorted by x.
+    pub opacity: Vec<(f64, f64)>,
+    /// Active data range mapped onto x = 0..1.
+    pub range: (f64, f64),
+    /// Length over which the opacity applies (world units).
+    pub unit_distance: f64,
+}
+
+/// A transfer function that cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum TransferFunctionError {
+    #[error("unknown transfer function preset '{0}' (built in: {1}; or give a ParaView preset .json file)")]
+    UnknownPreset(String, String),
+    #[error("{file}: {problem}")]
+    File { file: String, problem: String },
+    #[error("bad range {0},{1}: need finite lo < hi")]
+    BadRange(f64, f64),
+}
+
+const BUILTIN: [&str; 4] = ["Cool to Warm", "Viridis", "Inferno", "Grayscale"];
+
+fn table(flat: &[f64]) -> Vec<(f64, [f64; 3])> {
+    flat.chunks_exact(4).map(|c| (c[0], [c[1], c[2], c[3]])).collect()
+}
+
+fn normalise<T: Copy>(pts: &mut [(f64, T)]) {
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (a, b) = (pts[0].0, pts[pts.len() - 1].0);
+    for p in pts.iter_mut() {
+        p.0 = if b > a { (p.0 - a) / (b - a) } else { 0.0 };
+    }
+}
+
+fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T {
+    if t <= pts[0].0 {
+        return pts[0].1;
+    }
+    for w in pts.windows(2) {
+        if t <= w[1].0 {
+            let d = w[1].0 - w[0].0;
+            let f = if d > 0.0 { (t - w[0].0) / d } else { 1.0 };
+            return mix(w[0].1, w[1].1, f);
+        }
+    }
+    pts[pts.len() - 1].1
+}
+
+impl TransferFunction {
+    /// A built-in preset (case-insensitive; `-`/`_` match spaces) with ParaView's default
+    /// linear opacity ramp 0 → 1.
+    pub fn preset(name: &str) -> Result<TransferFunction, TransferFunctionError> {
+        let key = name.to_ascii_lowercase().replace(['-', '_'], " ");
+        let colors = match key.as_str() {
+            "cool to warm" | "coolwarm" => table(&[
+                0.0, 0.231373, 0.298039, 0.752941, 0.5, 0.865003, 0.865003, 0.865003, 1.0, 0.705882, 0.0156863, 0.14902,
+            ]),
+            "viridis" => table(&VIRIDIS),
+            "inferno" => table(&INFERNO),
+            "grayscale" | "greyscale" | "gray" => table(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]),
+            _ => return Err(TransferFunctionError::UnknownPreset(name.into(), BUILTIN.join(", "))),
+        };
+        let canonical = BUILTIN.iter().find(|b| b.to_ascii_lowercase() == key).copied().unwrap_or(name);
+        Ok(TransferFunction {
+            name: canonical.into(),
+            colors,
+            opacity: vec![(0.0, 0.0), (1.0, 1.0)],
+            range: (0.0, 1.0),
+            unit_distance: 1.0,
+        })
+    }
+
+    /// Names of the built-in presets.
+    pub fn builtin_names() -> &'static [&'static str] {
+        &BUILTIN
+    }
+
+    /// Parses ParaView colour-map preset JSON (a list of presets — the first with
+    /// `RGBPoints` is used — or one preset object). `file` names the source in errors.
+    pub fn from_paraview_json(text: &str, file: &str) -> Result<TransferFunction, TransferFunctionError> {
+        let err = |p: String| TransferFunctionError::File { file: file.into(), problem: p };
+        let v: Value = serde_json::from_str(text).map_err(|e| err(format!("invalid JSON: {e}")))?;
+        let obj = match &v {
+            Value::Array(a) => a.iter().find(|p| p.get("RGBPoints").is_some()).cloned(),
+            Value::Object(_) => Some(v.clone()),
+            _ => None,
+        }
+        .ok_or_else(|| err("no preset with 'RGBPoints' found".into()))?;
+        let nums = |key: &str| -> Result<Option<Vec<f64>>, TransferFunctionError> {
+            match obj.get(key) {
+                None => Ok(None),
+                Some(Value::Array(a)) => a
+                    .iter()
+                    .map(|x| x.as_f64().ok_or_else(|| err(format!("'{key}' holds a non-number"))))
+                    .collect::<Result<Vec<_>, _>>()
+                    .map(Some),
+                Some(_) => Err(err(format!("'{key}' is not an array"))),
+            }
+        };
+        let rgb = nums("RGBPoints")?.ok_or_else(|| err("no 'RGBPoints'".into()))?;
+        if rgb.len() < 4 || rgb.len() % 4 != 0 {
+            return Err(err(format!("'RGBPoints' needs groups of 4 numbers (x, r, g, b), found {}", rgb.len())));
+        }
+        let mut colors = table(&rgb);
+        normalise(&mut colors);
+        let mut opacity = match nums("Points")? {
+            Some(p) if p.len() >= 4 && p.len() % 4 == 0 => p.chunks_exact(4).map(|c| (c[0], c[1].clamp(0.0, 1.0))).collect(),
+            Some(p) if p.len() >= 2 && p.len() % 2 == 0 && p.len() % 4 != 0 => p.chunks_exact(2).map(|c| (c[0], c[1].clamp(0.0, 1.0))).collect(),
+            Some(p) => return Err(err(format!("'Points' (opacity) needs groups of 4 numbers (x, opacity, midpoint, sharpness), found {}", p.len()))),
+            None => vec![(0.0, 0.0), (1.0, 1.0)],
+        };
+        normalise(&mut opacity);
+        let name = obj.get("Name").and_then(Value::as_str).unwrap_or(file).to_string();
+        Ok(TransferFunction { name, colors, opacity, range: (0.0, 1.0), unit_distance: 1.0 })
+    }
+
+    /// Sets the data range mapped onto the colour map.
+    pub fn with_range(mut self, lo: f64, hi: f64) -> Result<Self, TransferFunctionError> {
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(TransferFunctionError::BadRange(lo, hi));
+        }
+        self.range = (lo, hi);
+        Ok(self)
+    }
+
+    /// Multiplies all opacities by `s` (clamped to 1).
+    pub fn scale_opacity(&mut self, s: f64) {
+        for p in &mut self.opacity {
+            p.1 = (p.1 * s).clamp(0.0, 1.0);
+        }
+    }
+
+    /// Position of `q` on the map (0..1, clamped); `None` for NaN.
+    #[inline]
+    pub fn normalised(&self, q: f64) -> Option<f64> {
+        if q.is_nan() {
+            return None;
+        }
+        Some(((q - self.range.0) / (self.range.1 - self.range.0)).clamp(0.0, 1.0))
+    }
+
+    /// Colour (linear RGB in [0,1]) and opacity per `unit_distance` at data value `q`.
+    pub fn eval(&self, q: f64) -> ([f64; 3], f64) {
+        match self.normalised(q) {
+            None => ([0.0; 3], 0.0),
+            Some(t) => (
+                lerp_at(&self.colors, t, |a, b, f| [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)),
+                lerp_at(&self.opacity, t, |a, b, f| a + (b - a) * f),
+            ),
+        }
+    }
+
+    /// Opacity for a step of length `ds` (world units): `1 − (1 − α)^(ds / unit)`.
+    #[inline]
+    pub fn step_alpha(&self, alpha: f64, ds: f64) -> f64 {
+        if alpha >= 1.0 {
+            return 1.0;
+        }
+        1.0 - (1.0 - alpha).powf(ds / self.unit_distance)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_and_interpolation() {
+        for n in TransferFunction::builtin_names() {
+            let tf = TransferFunction::preset(n).unwrap().with_range(10.0, 20.0).unwrap();
+            assert_eq!(tf.eval(5.0).1, 0.0);
+            assert_eq!(tf.eval(25.0).1, 1.0);
+            assert!((tf.eval(15.0).1 - 0.5).abs() < 1e-12);
+        }
+        let g = TransferFunction::preset("grayscale").unwrap().with_range(0.0, 2.0).unwrap();
+        assert!((g.eval(0.5).0[1] - 0.25).abs() < 1e-12);
+        assert!(TransferFunction::preset("nope").is_err());
+    }
+
+    #[test]
+    fn paraview_json() {
+        let j = r#"[{"Name":"Mine","ColorSpace":"RGB","RGBPoints":[-1,0,0,0, 1,1,0.5,0],
+                    "Points":[-1,0,0.5,0, 1,0.8,0.5,0]}]"#;
+        let tf = TransferFunction::from_paraview_json(j, "mine.json").unwrap().with_range(0.0, 4.0).unwrap();
+        let (c, a) = tf.eval(2.0);
+        assert!((c[1] - 0.25).abs() < 1e-12 && (a - 0.4).abs() < 1e-12);
+        assert!(TransferFunction::from_paraview_json("{\"RGBPoints\":[1,2]}", "x.json").is_err());
+    }
+
+    #[test]
+    fn opacity_correction_composes() {
+        let tf = TransferFunction::preset("viridis").unwrap();
+        // Two half steps must equal one full step.
+        let a = 0.3;
+        let half = tf.step_alpha(a, 0.5);
+        assert!((1.0 - (1.0 - half) * (1.0 - half) - a).abs() < 1e-12);
+    }
+}
