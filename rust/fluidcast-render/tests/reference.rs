@@ -1,0 +1,155 @@
+use fluidcast_render::{render_reference, RenderParams, SampleDepths};
+use fluidcast_sph::{FieldKind, Kernel, Particles};
+use fluidcast_view::{Camera, TransferFunction};
+
+fn cloud(n: usize, seed: u32) -> Particles {
+    let mut s = seed;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    let mut p = Particles::default();
+    for _ in 0..n {
+        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
+        p.positions.push(x);
+        p.radii.push(0.15 + 0.1 * rnd());
+        p.volumes.push(0.002 * (0.5 + rnd()));
+        p.masses.push(1.0 + rnd());
+        p.values.push(x[0] + 2.0 * x[1] * x[1]);
+    }
+    p
+}
+
+/// Independent oracle: world-space rays from the camera, every particle at every sample.
+fn brute_force(p: &Particles, cam: &Camera, tf: &TransferFunction, prm: &RenderParams, depths: &SampleDepths) -> Vec<[f64; 4]> {
+    let f = cam.frame(prm.width, prm.height).unwrap();
+    let mut out = Vec::new();
+    for j in 0..prm.height {
+        for i in 0..prm.width {
+            let (o, d) = f.ray(i, j);
+            let (mut c, mut t) = ([0.0f64; 3], 1.0f64);
+            for k in 0..depths.len() {
+                let x = o + d * depths.z[k];
+                let (mut wa, mut ws, mut wm) = (0.0, 0.0, 0.0);
+                for q in 0..p.len() {
+                    let pp = p.positions[q];
+                    let r = ((x.x - pp[0] as f64).powi(2) + (x.y - pp[1] as f64).powi(2) + (x.z - pp[2] as f64).powi(2)).sqrt();
+                    let w = prm.kernel.eval(r, p.radii[q] as f64);
+                    wa += p.volumes[q] as f64 * p.values[q] as f64 * w;
+                    ws += p.volumes[q] as f64 * w;
+                    wm += p.masses[q] as f64 * w;
+                }
+                if ws <= 0.0 {
+                    continue;
+                }
+                let v = match prm.field {
+                    FieldKind::Csph => wa / ws,
+                    FieldKind::Sph => wa,
+                    FieldKind::Density => wm,
+                };
+                let (rgb, a) = tf.eval(v);
+                let a = tf.step_alpha(a, (depths.z[k + 1] - depths.z[k]) * d.length());
+                for m in 0..3 {
+                    c[m] += t * a * rgb[m];
+                }
+                t *= 1.0 - a;
+            }
+            out.push([c[0], c[1], c[2], 1.0 - t]);
+        }
+    }
+    out
+}
+
+#[test]
+fn reference_equals_brute_force() {
+    let p = cloud(60, 7);
+    for (parallel, field, kernel) in [
+        (false, FieldKind::Csph, Kernel::CubicSpline),
+        (true, FieldKind::Sph, Kernel::WendlandC2),
+        (false, FieldKind::Density, Kernel::Quintic),
+    ] {
+        let mut cam = Camera::default();
+        cam.reset([-0.7; 3], [0.7; 3]);
+        cam.azimuth(25.0);
+        cam.elevation(-15.0);
+        cam.parallel_projection = parallel;
+        let (lo, hi) = match field {
+            FieldKind::Density => (0.0, 800.0),
+            FieldKind::Sph => (0.0, 0.2),
+            FieldKind::Csph => (-0.5, 1.0),
+        };
+        let mut tf = TransferFunction::preset("viridis").unwrap().with_range(lo, hi).unwrap();
+        tf.unit_distance = 0.3;
+        let prm = RenderParams { width: 24, height: 18, kernel, field, min_transmittance: 0.0, ..Default::default() };
+        let (img, stats) = render_reference(&p, &cam, &tf, &prm).unwrap();
+        let f = cam.frame(prm.width, prm.height).unwrap();
+        let depths = SampleDepths::new(&f, stats.near, stats.far, 1.0).unwrap();
+        let bf = brute_force(&p, &cam, &tf, &prm, &depths);
+        let mut max = 0.0f64;
+        for (a, b) in img.rgba.iter().zip(&bf) {
+            for k in 0..4 {
+                max = max.max((a[k] as f64 - b[k]).abs());
+            }
+        }
+        assert!(max < 1e-5, "parallel={parallel} {field:?}: max abs {max}");
+        assert!(img.rgba.iter().any(|p| p[3] > 0.05), "nothing rendered");
+    }
+}
+
+#[test]
+fn uniform_slab_transmittance_is_exponential() {
+    // A lattice slab with a constant attribute: the CSPH field is constant (exactly)
+    // wherever a particle reaches, i.e. on the central ray from z = -H to d + H.
+    let (spacing, h) = (0.05f32, 0.1f32);
+    let mut p = Particles::default();
+    let nz = 9; // z = 0 .. 0.4
+    for i in -6..=6 {
+        for j in -6..=6 {
+            for k in 0..nz {
+                p.positions.push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
+                p.radii.push(h);
+                p.volumes.push(spacing.powi(3));
+                p.masses.push(1.0);
+                p.values.push(0.7);
+            }
+        }
+    }
+    let thickness = (nz - 1) as f64 * spacing as f64 + 2.0 * h as f64;
+    let cam = Camera {
+        position: [0.0, 0.0, 3.0],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        parallel_projection: true,
+        parallel_scale: 0.002,
+        ..Default::default()
+    };
+    let alpha = 0.4; // opacity per unit distance
+    let mut tf = TransferFunction::preset("grayscale").unwrap().with_range(0.0, 1.0).unwrap();
+    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
+    tf.unit_distance = 0.25;
+    let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
+    let prm = RenderParams { width: 2, height: 2, sampling_scale: 10.0, min_transmittance: 0.0, ..Default::default() };
+    let (img, stats) = render_reference(&p, &cam, &tf, &prm).unwrap();
+    assert!(stats.depth_samples > 1000);
+    let t = 1.0 - img.rgba[0][3] as f64;
+    let expected = (-sigma * thickness).exp();
+    assert!((t - expected).abs() < 1e-3, "T = {t}, exp(-σd) = {expected}");
+    // Emission: constant colour c with opacity: premultiplied colour = c·(1 − T).
+    let c = tf.eval(0.7).0[0];
+    assert!((img.rgba[0][0] as f64 - c * (1.0 - t)).abs() < 1e-5);
+}
+
+#[test]
+fn sample_index_ranges_are_exact() {
+    let cam = Camera::default();
+    let f = cam.frame(100, 80).unwrap();
+    let d = SampleDepths::new(&f, 0.5, 3.0, 1.0).unwrap();
+    for (z0, z1) in [(0.4, 0.6), (1.0, 1.0001), (2.5, 3.5), (0.51, 0.52), (d.z[10], d.z[20])] {
+        let r = d.indices_within(z0, z1);
+        for k in 0..d.len() {
+            assert_eq!(r.contains(&k), d.z[k] >= z0 && d.z[k] <= z1, "k={k} z={} in [{z0},{z1}]", d.z[k]);
+        }
+    }
+}
