@@ -11,4 +11,4 @@
 
 mod reference;
 
-pub use reference::{render_reference, RenderError, RenderParams, RenderStats, SampleDepths};
+pub use reference::{render_reference, RenderError, RenderParams, RenderStats, SampleDepths, MAX_SIDE};
