@@ -1,0 +1,10 @@
+#!/usr/bin/env bash
+# Runs every test: the Rust workspace, then the Python tests that hold fluidcast against
+# VTK itself (reader, vtkSPHInterpolator). Sets up .venv/ first (idempotent).
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+cd "$root"
+bash scripts/setup_python.sh
+cargo build --bin fluidcast
+cargo test --workspace
+.venv/bin/python -m pytest -q tests/python

@@ -1,0 +1,31 @@
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SHARED = ROOT.parent / "shared" / "data"
+BIN = ROOT / "target" / "debug" / "fluidcast"
+
+
+def fluidcast(*args, check=True):
+    """Runs the fluidcast CLI (built by scripts/test.sh) and returns the CompletedProcess."""
+    if not BIN.exists():
+        pytest.fail(f"{BIN} missing: run `cargo build --bin fluidcast` (scripts/test.sh does)")
+    r = subprocess.run([str(BIN), *map(str, args)], capture_output=True, text=True)
+    if check and r.returncode != 0:
+        raise AssertionError(f"fluidcast {' '.join(map(str, args))} failed:\n{r.stderr}")
+    return r
+
+
+def shared(rel):
+    p = SHARED / rel
+    if not p.exists():
+        pytest.skip(f"{p} not present")
+    return p
+
+
+def info_json(path):
+    return json.loads(fluidcast("info", path, "--json").stdout)
