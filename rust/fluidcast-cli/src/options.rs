@@ -16,14 +16,14 @@ pub struct ParticleArgs {
     #[arg(long)]
     pub field: Option<String>,
     /// One support radius H for all particles (world units; the kernel is 0 beyond H).
-    #[arg(long, conflicts_with = "radius_array")]
+    #[arg(long, conflicts_with = "radius_array", allow_hyphen_values = true)]
     pub support_radius: Option<f64>,
     /// Per-particle radius array; H = value × --radius-scale.
     #[arg(long)]
     pub radius_array: Option<String>,
     /// Factor from --radius-array to the support radius (2 for a smoothing length h with a
     /// cubic or Wendland kernel).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub radius_scale: f64,
     /// Mass array (with --density-array: V = m/ρ).
     #[arg(long, requires = "density_array")]
