@@ -18,8 +18,16 @@ pub fn run(a: InfoArgs) -> Result<()> {
     let input = Input::open(&a.input)?;
     let frames = input.frames();
     let ds = read_dataset(&frames[0].1)?;
-    let nonfinite = ds.points.iter().filter(|p| !p.iter().all(|v| v.is_finite())).count();
-    let suggested = if ds.field_scalar("support_radius").is_none() { suggest_support_radius(&ds.points) } else { None };
+    let nonfinite = ds
+        .points
+        .iter()
+        .filter(|p| !p.iter().all(|v| v.is_finite()))
+        .count();
+    let suggested = if ds.field_scalar("support_radius").is_none() {
+        suggest_support_radius(&ds.points)
+    } else {
+        None
+    };
     let arrays: Vec<_> = ds
         .point_data
         .iter()
@@ -44,30 +52,63 @@ pub fn run(a: InfoArgs) -> Result<()> {
         return Ok(());
     }
     if let Input::Series(c) = &input {
-        println!("series {}: {} frames, t = {} .. {}", c.path.display(), c.entries.len(), c.entries[0].timestep, c.entries.last().unwrap().timestep);
+        println!(
+            "series {}: {} frames, t = {} .. {}",
+            c.path.display(),
+            c.entries.len(),
+            c.entries[0].timestep,
+            c.entries.last().unwrap().timestep
+        );
         println!("first frame:");
     }
     println!("file:   {}", ds.path.display());
     println!("kind:   {:?}", ds.kind);
-    println!("points: {}{}", ds.points.len(), if nonfinite > 0 { format!(" ({nonfinite} with NaN/Inf coordinates)") } else { String::new() });
+    println!(
+        "points: {}{}",
+        ds.points.len(),
+        if nonfinite > 0 {
+            format!(" ({nonfinite} with NaN/Inf coordinates)")
+        } else {
+            String::new()
+        }
+    );
     if let Some((lo, hi)) = ds.bounds() {
-        println!("bounds: x [{:.6}, {:.6}]  y [{:.6}, {:.6}]  z [{:.6}, {:.6}] (world units)", lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]);
+        println!(
+            "bounds: x [{:.6}, {:.6}]  y [{:.6}, {:.6}]  z [{:.6}, {:.6}] (world units)",
+            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+        );
     }
     println!("point data:");
     for x in &ds.point_data {
-        let r = x.range().map(|r| format!("[{:.6}, {:.6}]", r.0, r.1)).unwrap_or("(empty)".into());
+        let r = x
+            .range()
+            .map(|r| format!("[{:.6}, {:.6}]", r.0, r.1))
+            .unwrap_or("(empty)".into());
         let m = if x.num_components > 1 {
-            x.magnitude_range().map(|r| format!("  |v| in [{:.6}, {:.6}]", r.0, r.1)).unwrap_or_default()
+            x.magnitude_range()
+                .map(|r| format!("  |v| in [{:.6}, {:.6}]", r.0, r.1))
+                .unwrap_or_default()
         } else {
             String::new()
         };
-        println!("  {:<24} {:<8} x{}  range {r}{m}", x.name, x.scalar_type.vtk_name(), x.num_components);
+        println!(
+            "  {:<24} {:<8} x{}  range {r}{m}",
+            x.name,
+            x.scalar_type.vtk_name(),
+            x.num_components
+        );
     }
     if !ds.field_data.is_empty() {
         println!("field data:");
         for x in &ds.field_data {
             let vals: Vec<String> = x.values.iter().take(6).map(|v| format!("{v}")).collect();
-            println!("  {:<24} {:<8} {}{}", x.name, x.scalar_type.vtk_name(), vals.join(" "), if x.values.len() > 6 { " …" } else { "" });
+            println!(
+                "  {:<24} {:<8} {}{}",
+                x.name,
+                x.scalar_type.vtk_name(),
+                vals.join(" "),
+                if x.values.len() > 6 { " …" } else { "" }
+            );
         }
     }
     match (ds.field_scalar("support_radius"), suggested) {

@@ -11,7 +11,11 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "fluidcast", version, about = "Direct volume rendering of SPH particle data (VTK .vtu/.vtp/.pvd/.vtk)")]
+#[command(
+    name = "fluidcast",
+    version,
+    about = "Direct volume rendering of SPH particle data (VTK .vtu/.vtp/.pvd/.vtk)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -20,7 +24,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a particle file or a .pvd series to EXR/PNG.
-    Render(render::RenderArgs),
+    Render(Box<render::RenderArgs>),
     /// Print points, bounds, arrays, field data and a suggested support radius.
     Info(info::InfoArgs),
     /// Compare two images (EXR or PNG): max abs difference, RMSE, share of pixels above a tolerance.
@@ -49,7 +53,8 @@ fn compare(a: CompareArgs) -> Result<()> {
     let ib = fluidcast_image::Image::read(&a.b)?;
     let (c, diff) = fluidcast_image::compare(&ia, &ib, a.tolerance)?;
     if let Some(d) = &a.diff {
-        diff.save(d, [0.0; 3]).with_context(|| format!("writing {}", d.display()))?;
+        diff.save(d, [0.0; 3])
+            .with_context(|| format!("writing {}", d.display()))?;
     }
     if a.json {
         println!(
@@ -60,7 +65,11 @@ fn compare(a: CompareArgs) -> Result<()> {
     } else {
         println!("max abs difference: {:.6}", c.max_abs);
         println!("RMSE:               {:.6}", c.rmse);
-        println!("pixels above {:.5}: {:.4} %", c.tolerance, c.frac_above * 100.0);
+        println!(
+            "pixels above {:.5}: {:.4} %",
+            c.tolerance,
+            c.frac_above * 100.0
+        );
     }
     Ok(())
 }
@@ -68,7 +77,7 @@ fn compare(a: CompareArgs) -> Result<()> {
 fn main() {
     let cli = Cli::parse();
     let r = match cli.command {
-        Command::Render(a) => render::run(a),
+        Command::Render(a) => render::run(*a),
         Command::Info(a) => info::run(a),
         Command::Compare(a) => compare(a),
         Command::Probe(a) => probe::run(a),

@@ -51,20 +51,34 @@ impl ParticleArgs {
             }
         }
         if !(self.radius_scale.is_finite() && self.radius_scale > 0.0) {
-            bail!("--radius-scale {}: must be finite and > 0", self.radius_scale);
+            bail!(
+                "--radius-scale {}: must be finite and > 0",
+                self.radius_scale
+            );
         }
         let radius = match (&self.radius_array, self.support_radius) {
-            (Some(n), _) => RadiusSource::Array { name: n.clone(), scale: self.radius_scale },
+            (Some(n), _) => RadiusSource::Array {
+                name: n.clone(),
+                scale: self.radius_scale,
+            },
             (None, Some(h)) => RadiusSource::Constant(h),
             (None, None) => RadiusSource::Auto,
         };
         let volume = match (&self.mass_array, &self.density_array, &self.volume_array) {
-            (Some(m), Some(d), _) => VolumeSource::MassDensity { mass: m.clone(), density: d.clone() },
+            (Some(m), Some(d), _) => VolumeSource::MassDensity {
+                mass: m.clone(),
+                density: d.clone(),
+            },
             (_, _, Some(v)) => VolumeSource::Array(v.clone()),
             _ if self.uniform_volume => VolumeSource::Uniform,
             _ => VolumeSource::Auto,
         };
-        Ok(ParticleSpec { quantity, radius, volume, mass: self.mass_array.clone() })
+        Ok(ParticleSpec {
+            quantity,
+            radius,
+            volume,
+            mass: self.mass_array.clone(),
+        })
     }
 
     pub fn kernel(&self) -> Result<Kernel> {

@@ -77,22 +77,44 @@ fn parse_pair(s: &str, what: &str) -> Result<(f64, f64)> {
     if v.len() != 2 {
         bail!("{what} '{s}': expected two numbers, lo,hi");
     }
-    Ok((v[0].trim().parse().with_context(|| format!("{what} '{s}'"))?, v[1].trim().parse().with_context(|| format!("{what} '{s}'"))?))
+    Ok((
+        v[0].trim()
+            .parse()
+            .with_context(|| format!("{what} '{s}'"))?,
+        v[1].trim()
+            .parse()
+            .with_context(|| format!("{what} '{s}'"))?,
+    ))
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s.split_once(['x', 'X']).with_context(|| format!("--size '{s}': expected WxH, e.g. 800x600"))?;
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size '{s}': expected WxH, e.g. 800x600"))?;
     let w: u64 = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
     let h: u64 = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    if w == 0 || h == 0 || w > fluidcast_render::MAX_SIDE as u64 || h > fluidcast_render::MAX_SIDE as u64 {
-        bail!("--size {w}x{h}: each side must be 1..={} pixels", fluidcast_render::MAX_SIDE);
+    if w == 0
+        || h == 0
+        || w > fluidcast_render::MAX_SIDE as u64
+        || h > fluidcast_render::MAX_SIDE as u64
+    {
+        bail!(
+            "--size {w}x{h}: each side must be 1..={} pixels",
+            fluidcast_render::MAX_SIDE
+        );
     }
     Ok((w as u32, h as u32))
 }
 
 fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
     let parts: Vec<&str> = s.split(':').collect();
-    let num = |t: &str, d: usize| -> Result<usize> { if t.trim().is_empty() { Ok(d) } else { t.trim().parse().with_context(|| format!("--frames '{s}'")) } };
+    let num = |t: &str, d: usize| -> Result<usize> {
+        if t.trim().is_empty() {
+            Ok(d)
+        } else {
+            t.trim().parse().with_context(|| format!("--frames '{s}'"))
+        }
+    };
     let (a, b, step) = match parts.len() {
         1 => {
             let i = num(parts[0], 0)?;
@@ -107,7 +129,10 @@ fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
     }
     let v: Vec<usize> = (a..b.min(n)).step_by(step).collect();
     if v.is_empty() {
-        bail!("--frames '{s}' selects no frame (the series has {n} frames, 0..{})", n.saturating_sub(1));
+        bail!(
+            "--frames '{s}' selects no frame (the series has {n} frames, 0..{})",
+            n.saturating_sub(1)
+        );
     }
     Ok(v)
 }
@@ -115,18 +140,34 @@ fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
 /// Expands a printf-style `%d` / `%0Nd` in the output path with the frame index.
 fn frame_path(pattern: &Path, index: usize) -> Result<PathBuf> {
     let s = pattern.to_string_lossy();
-    let Some(p) = s.find('%') else { bail!("output '{s}' needs a %04d-style frame pattern for several frames") };
+    let Some(p) = s.find('%') else {
+        bail!("output '{s}' needs a %04d-style frame pattern for several frames")
+    };
     let rest = &s[p + 1..];
-    let end = rest.find('d').with_context(|| format!("output '{s}': unsupported pattern (use %d or %04d)"))?;
+    let end = rest
+        .find('d')
+        .with_context(|| format!("output '{s}': unsupported pattern (use %d or %04d)"))?;
     let spec = &rest[..end];
-    let width: usize = if spec.is_empty() { 0 } else { spec.trim_start_matches('0').parse().with_context(|| format!("output pattern '{s}'"))? };
-    Ok(PathBuf::from(format!("{}{:0width$}{}", &s[..p], index, &rest[end + 1..])))
+    let width: usize = if spec.is_empty() {
+        0
+    } else {
+        spec.trim_start_matches('0')
+            .parse()
+            .with_context(|| format!("output pattern '{s}'"))?
+    };
+    Ok(PathBuf::from(format!(
+        "{}{:0width$}{}",
+        &s[..p],
+        index,
+        &rest[end + 1..]
+    )))
 }
 
 fn load_tf(spec: &str) -> Result<TransferFunction> {
     let p = Path::new(spec);
     if p.extension().map(|e| e.eq_ignore_ascii_case("json")) == Some(true) || p.exists() {
-        let text = std::fs::read_to_string(p).with_context(|| format!("reading transfer function {spec}"))?;
+        let text = std::fs::read_to_string(p)
+            .with_context(|| format!("reading transfer function {spec}"))?;
         Ok(TransferFunction::from_paraview_json(&text, spec)?)
     } else {
         Ok(TransferFunction::preset(spec)?)
@@ -134,7 +175,11 @@ fn load_tf(spec: &str) -> Result<TransferFunction> {
 }
 
 fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json::Value {
-    let stages: serde_json::Map<String, serde_json::Value> = s.stages.iter().map(|(k, v)| (format!("{k}_ms"), json!(v))).collect();
+    let stages: serde_json::Map<String, serde_json::Value> = s
+        .stages
+        .iter()
+        .map(|(k, v)| (format!("{k}_ms"), json!(v)))
+        .collect();
     json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
            "samples": s.samples, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
            "image": {"width": s.width, "height": s.height}})
@@ -143,7 +188,11 @@ fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json::Va
 pub fn run(a: RenderArgs) -> Result<()> {
     let (width, height) = parse_size(&a.size)?;
     let background = {
-        let v: Vec<f32> = a.background.split(',').filter_map(|x| x.trim().parse().ok()).collect();
+        let v: Vec<f32> = a
+            .background
+            .split(',')
+            .filter_map(|x| x.trim().parse().ok())
+            .collect();
         if v.len() != 3 {
             bail!("--background '{}': expected r,g,b in 0..1", a.background);
         }
@@ -153,7 +202,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let all = input.frames();
     let frames: Vec<usize> = match (&a.frames, &input) {
         (Some(f), _) => parse_frames(f, all.len())?,
-        (None, Input::Series(_)) if a.output.to_string_lossy().contains('%') => (0..all.len()).collect(),
+        (None, Input::Series(_)) if a.output.to_string_lossy().contains('%') => {
+            (0..all.len()).collect()
+        }
         (None, Input::Series(_)) => {
             eprintln!("note: {} has {} frames; rendering the first (use --frames and an out_%04d.png pattern for more)", a.input.display(), all.len());
             vec![0]
@@ -161,7 +212,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         (None, Input::File(_)) => vec![0],
     };
     if frames.len() > 1 && !a.output.to_string_lossy().contains('%') {
-        bail!("{} frames selected: the output needs a frame pattern such as out_%04d.png", frames.len());
+        bail!(
+            "{} frames selected: the output needs a frame pattern such as out_%04d.png",
+            frames.len()
+        );
     }
     let spec = a.particles.spec()?;
     let params = RenderParams {
@@ -174,13 +228,21 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let mut tf = load_tf(&a.tf)?;
     if !(a.opacity_scale.is_finite() && a.opacity_scale >= 0.0) {
-        bail!("--opacity-scale {}: must be finite and >= 0", a.opacity_scale);
+        bail!(
+            "--opacity-scale {}: must be finite and >= 0",
+            a.opacity_scale
+        );
     }
     tf.scale_opacity(a.opacity_scale);
 
     let progress = (frames.len() > 1).then(|| {
         let pb = ProgressBar::new(frames.len() as u64);
-        pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}").unwrap());
+        pb.set_style(
+            ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}",
+            )
+            .unwrap(),
+        );
         pb
     });
     let mut camera: Option<Camera> = None;
@@ -193,7 +255,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let t_prep = Instant::now();
         let particles = Particles::from_dataset(&ds, &spec)?;
         if particles.skipped_nonfinite > 0 {
-            eprintln!("warning: {}: skipped {} particles with NaN/Inf coordinates", file.display(), particles.skipped_nonfinite);
+            eprintln!(
+                "warning: {}: skipped {} particles with NaN/Inf coordinates",
+                file.display(),
+                particles.skipped_nonfinite
+            );
         }
         if n == 0 {
             for note in &particles.notes {
@@ -202,11 +268,15 @@ pub fn run(a: RenderArgs) -> Result<()> {
             // Camera, range and opacity unit are fixed from the first frame for a whole series.
             let mut cam = if a.camera == "auto" {
                 let (lo, hi) = particles.support_bounds();
-                let mut c = Camera { parallel_projection: a.parallel, ..Default::default() };
+                let mut c = Camera {
+                    parallel_projection: a.parallel,
+                    ..Default::default()
+                };
                 c.reset(lo.map(f64::from), hi.map(f64::from));
                 c
             } else {
-                let text = std::fs::read_to_string(&a.camera).with_context(|| format!("reading camera file {}", a.camera))?;
+                let text = std::fs::read_to_string(&a.camera)
+                    .with_context(|| format!("reading camera file {}", a.camera))?;
                 Camera::from_json(&text).with_context(|| format!("camera file {}", a.camera))?
             };
             cam.azimuth(a.azimuth);
@@ -217,7 +287,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
             cam.zoom(a.zoom);
             if let Some(p) = &a.save_camera {
-                std::fs::write(p, serde_json::to_string_pretty(&cam)?).with_context(|| format!("writing {}", p.display()))?;
+                std::fs::write(p, serde_json::to_string_pretty(&cam)?)
+                    .with_context(|| format!("writing {}", p.display()))?;
             }
             camera = Some(cam);
             let (lo, hi) = match &a.range {
@@ -230,12 +301,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
                         }
                         // For sums, map up to the typical field magnitude at a particle.
                         _ => {
-                            let s = particles.sample_many(params.kernel, &particles.positions.iter().step_by((particles.len() / 2000).max(1)).map(|p| p.map(f64::from)).collect::<Vec<_>>());
-                            let v: Vec<f64> = s.iter().filter_map(|s| s.value(params.field)).collect();
+                            let s = particles.sample_many(
+                                params.kernel,
+                                &particles
+                                    .positions
+                                    .iter()
+                                    .step_by((particles.len() / 2000).max(1))
+                                    .map(|p| p.map(f64::from))
+                                    .collect::<Vec<_>>(),
+                            );
+                            let v: Vec<f64> =
+                                s.iter().filter_map(|s| s.value(params.field)).collect();
                             (0.0, v.iter().copied().fold(0.0, f64::max))
                         }
                     };
-                    if lo < hi { (lo, hi) } else { (lo - 0.5, lo + 0.5) }
+                    if lo < hi {
+                        (lo, hi)
+                    } else {
+                        (lo - 0.5, lo + 0.5)
+                    }
                 }
             };
             tf = tf.clone().with_range(lo, hi)?;
@@ -244,7 +328,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 Some(u) => bail!("--opacity-unit-distance {u}: must be finite and > 0"),
                 None => {
                     let (lo, hi) = particles.support_bounds();
-                    let diag = (0..3).map(|k| ((hi[k] - lo[k]) as f64).powi(2)).sum::<f64>().sqrt();
+                    let diag = (0..3)
+                        .map(|k| ((hi[k] - lo[k]) as f64).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
                     diag / (particles.len() as f64).cbrt()
                 }
             };
@@ -259,19 +346,40 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         }
         let prep_ms = t_prep.elapsed().as_secs_f64() * 1e3;
-        let (image, mut stats) = render_reference(&particles, camera.as_ref().unwrap(), &tf, &params).with_context(|| format!("rendering {}", file.display()))?;
+        let (image, mut stats) =
+            render_reference(&particles, camera.as_ref().unwrap(), &tf, &params)
+                .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));
-        let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') { frame_path(&a.output, fi)? } else { a.output.clone() };
+        let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') {
+            frame_path(&a.output, fi)?
+        } else {
+            a.output.clone()
+        };
         let t_write = Instant::now();
-        image.save(&out, background).with_context(|| format!("writing {}", out.display()))?;
-        stats.stages.push(("write", t_write.elapsed().as_secs_f64() * 1e3));
+        image
+            .save(&out, background)
+            .with_context(|| format!("writing {}", out.display()))?;
+        stats
+            .stages
+            .push(("write", t_write.elapsed().as_secs_f64() * 1e3));
         all_stats.push(stats_json(&stats, file, *time));
         match &progress {
             Some(pb) => pb.inc(1),
             None => {
-                let total: f64 = stats.stages.iter().filter(|(k, _)| *k != "total").filter(|(k, _)| !matches!(*k, "bin" | "raycast")).map(|(_, v)| v).sum::<f64>()
-                    + stats.stages.iter().find(|(k, _)| *k == "total").map(|s| s.1).unwrap_or(0.0);
+                let total: f64 = stats
+                    .stages
+                    .iter()
+                    .filter(|(k, _)| *k != "total")
+                    .filter(|(k, _)| !matches!(*k, "bin" | "raycast"))
+                    .map(|(_, v)| v)
+                    .sum::<f64>()
+                    + stats
+                        .stages
+                        .iter()
+                        .find(|(k, _)| *k == "total")
+                        .map(|s| s.1)
+                        .unwrap_or(0.0);
                 eprintln!(
                     "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms",
                     out.display(),
@@ -286,8 +394,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         pb.finish_with_message("done");
     }
     if let Some(p) = &a.stats {
-        let v = if all_stats.len() == 1 { all_stats.pop().unwrap() } else { serde_json::Value::Array(all_stats) };
-        std::fs::write(p, serde_json::to_string_pretty(&v)?).with_context(|| format!("writing {}", p.display()))?;
+        let v = if all_stats.len() == 1 {
+            all_stats.pop().unwrap()
+        } else {
+            serde_json::Value::Array(all_stats)
+        };
+        std::fs::write(p, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("writing {}", p.display()))?;
         eprintln!("stats: {}", p.display());
     }
     Ok(())

@@ -3,11 +3,16 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/fixtures")
+        .join(name)
 }
 
 fn run(args: &[&str]) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast")).args(args).output().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args(args)
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(!err.contains("panicked"), "panic: {err}");
     (o.status.success(), err)
@@ -16,7 +21,14 @@ fn run(args: &[&str]) -> (bool, String) {
 fn render_err(input: &Path, extra: &[&str]) -> String {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
-    let mut args = vec!["render", input.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "32x24"];
+    let mut args = vec![
+        "render",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "32x24",
+    ];
     args.extend_from_slice(extra);
     let (ok, err) = run(&args);
     assert!(!ok, "expected failure for {input:?} {extra:?}");
@@ -44,13 +56,20 @@ fn truncated_file() {
     let full = std::fs::read(fixture("lattice_appended-raw_zlib_h64.vtu")).unwrap();
     let p = write(dir.path(), "cut.vtu", &full[..full.len() * 2 / 3]);
     let err = render_err(&p, &[]);
-    assert!(err.contains("cut.vtu") && err.contains("truncated"), "{err}");
+    assert!(
+        err.contains("cut.vtu") && err.contains("truncated"),
+        "{err}"
+    );
 }
 
 #[test]
 fn malformed_xml_and_unknown_extension() {
     let dir = tempfile::tempdir().unwrap();
-    let p = write(dir.path(), "bad.vtu", b"<VTKFile type=\"UnstructuredGrid\"><Piece NumberOfPoints=\"x\"");
+    let p = write(
+        dir.path(),
+        "bad.vtu",
+        b"<VTKFile type=\"UnstructuredGrid\"><Piece NumberOfPoints=\"x\"",
+    );
     let err = render_err(&p, &[]);
     assert!(err.contains("bad.vtu"), "{err}");
     let q = write(dir.path(), "x.obj", b"v 0 0 0");
@@ -62,17 +81,35 @@ fn malformed_xml_and_unknown_extension() {
 #[test]
 fn wrong_array_length() {
     let dir = tempfile::tempdir().unwrap();
-    let s = ascii_vtu("0 0 0 1 0 0", 2, r#"<DataArray type="Float32" Name="t" format="ascii">1 2 3</DataArray>"#);
+    let s = ascii_vtu(
+        "0 0 0 1 0 0",
+        2,
+        r#"<DataArray type="Float32" Name="t" format="ascii">1 2 3</DataArray>"#,
+    );
     let p = write(dir.path(), "len.vtu", s.as_bytes());
     let err = render_err(&p, &["--array", "t"]);
-    assert!(err.contains("len.vtu") && err.contains("'t'") && err.contains("expected 2 tuples"), "{err}");
+    assert!(
+        err.contains("len.vtu") && err.contains("'t'") && err.contains("expected 2 tuples"),
+        "{err}"
+    );
 }
 
 #[test]
 fn unknown_array_lists_available() {
-    let err = render_err(&fixture("lattice_ascii_none_h64.vtu"), &["--array", "temperature"]);
-    assert!(err.contains("no point array 'temperature'") && err.contains("velocity (3 comp.)") && err.contains("density"), "{err}");
-    let err = render_err(&fixture("lattice_ascii_none_h64.vtu"), &["--array", "velocity:5"]);
+    let err = render_err(
+        &fixture("lattice_ascii_none_h64.vtu"),
+        &["--array", "temperature"],
+    );
+    assert!(
+        err.contains("no point array 'temperature'")
+            && err.contains("velocity (3 comp.)")
+            && err.contains("density"),
+        "{err}"
+    );
+    let err = render_err(
+        &fixture("lattice_ascii_none_h64.vtu"),
+        &["--array", "velocity:5"],
+    );
     assert!(err.contains("component 5"), "{err}");
 }
 
@@ -81,19 +118,36 @@ fn no_points() {
     let dir = tempfile::tempdir().unwrap();
     let p = write(dir.path(), "empty.vtu", ascii_vtu("", 0, "").as_bytes());
     let err = render_err(&p, &[]);
-    assert!(err.contains("empty.vtu") && err.contains("no points"), "{err}");
+    assert!(
+        err.contains("empty.vtu") && err.contains("no points"),
+        "{err}"
+    );
 }
 
 #[test]
 fn bad_radii() {
     let dir = tempfile::tempdir().unwrap();
-    for (name, vals) in [("nan.vtu", "0.1 nan"), ("neg.vtu", "0.1 -0.2"), ("zero.vtu", "0 0.1")] {
-        let s = ascii_vtu("0 0 0 1 0 0", 2, &format!(r#"<DataArray type="Float32" Name="h" format="ascii">{vals}</DataArray>"#));
+    for (name, vals) in [
+        ("nan.vtu", "0.1 nan"),
+        ("neg.vtu", "0.1 -0.2"),
+        ("zero.vtu", "0 0.1"),
+    ] {
+        let s = ascii_vtu(
+            "0 0 0 1 0 0",
+            2,
+            &format!(r#"<DataArray type="Float32" Name="h" format="ascii">{vals}</DataArray>"#),
+        );
         let p = write(dir.path(), name, s.as_bytes());
         let err = render_err(&p, &["--radius-array", "h"]);
-        assert!(err.contains(name) && err.contains("support radius"), "{err}");
+        assert!(
+            err.contains(name) && err.contains("support radius"),
+            "{err}"
+        );
     }
-    let err = render_err(&fixture("lattice_ascii_none_h64.vtu"), &["--support-radius", "-1"]);
+    let err = render_err(
+        &fixture("lattice_ascii_none_h64.vtu"),
+        &["--support-radius", "-1"],
+    );
     assert!(err.contains("--support-radius"), "{err}");
 }
 
@@ -111,11 +165,24 @@ fn nan_positions_are_skipped_with_a_count() {
     let s = ascii_vtu("0 0 0 0.01 0 0 nan 0 0 0 inf 0 0 0.01 0", 5, "");
     let p = write(dir.path(), "nanpos.vtu", s.as_bytes());
     let out = dir.path().join("o.png");
-    let (ok, err) = run(&["render", p.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "16x16", "--support-radius", "0.02"]);
+    let (ok, err) = run(&[
+        "render",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "16x16",
+        "--support-radius",
+        "0.02",
+    ]);
     assert!(ok, "{err}");
     assert!(err.contains("skipped 2 particles with NaN/Inf"), "{err}");
     assert!(out.exists());
-    let all_nan = write(dir.path(), "allnan.vtu", ascii_vtu("nan 0 0", 1, "").as_bytes());
+    let all_nan = write(
+        dir.path(),
+        "allnan.vtu",
+        ascii_vtu("nan 0 0", 1, "").as_bytes(),
+    );
     assert!(render_err(&all_nan, &["--support-radius", "0.02"]).contains("NaN"));
 }
 
@@ -123,11 +190,29 @@ fn nan_positions_are_skipped_with_a_count() {
 fn series_needs_a_pattern_and_renders_frames() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("f_%03d.png");
-    let (ok, err) = run(&["render", fixture("series.pvd").to_str().unwrap(), "-o", out.to_str().unwrap(), "--frames", "0:2", "--size", "16x12", "--array", "density"]);
+    let (ok, err) = run(&[
+        "render",
+        fixture("series.pvd").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--frames",
+        "0:2",
+        "--size",
+        "16x12",
+        "--array",
+        "density",
+    ]);
     assert!(ok, "{err}");
     assert!(dir.path().join("f_000.png").exists() && dir.path().join("f_001.png").exists());
     let single = dir.path().join("one.png");
-    let (ok, err) = run(&["render", fixture("series.pvd").to_str().unwrap(), "-o", single.to_str().unwrap(), "--frames", "0:2"]);
+    let (ok, err) = run(&[
+        "render",
+        fixture("series.pvd").to_str().unwrap(),
+        "-o",
+        single.to_str().unwrap(),
+        "--frames",
+        "0:2",
+    ]);
     assert!(!ok && err.contains("frame pattern"), "{err}");
 }
 
@@ -137,18 +222,47 @@ fn stats_and_compare() {
     let a = dir.path().join("a.exr");
     let stats = dir.path().join("s.json");
     let input = fixture("lattice_binary_zlib_h64.vtp");
-    let (ok, err) = run(&["render", input.to_str().unwrap(), "-o", a.to_str().unwrap(), "--size", "40x30", "--array", "velocity:mag", "--stats", stats.to_str().unwrap()]);
+    let (ok, err) = run(&[
+        "render",
+        input.to_str().unwrap(),
+        "-o",
+        a.to_str().unwrap(),
+        "--size",
+        "40x30",
+        "--array",
+        "velocity:mag",
+        "--stats",
+        stats.to_str().unwrap(),
+    ]);
     assert!(ok, "{err}");
-    let s: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     for k in ["read_ms", "bin_ms", "raycast_ms", "total_ms"] {
         assert!(s["timings"][k].as_f64().unwrap() >= 0.0, "{k}");
     }
     assert_eq!(s["particles"], 256);
     // The same particles from the ascii file give the same image.
     let b = dir.path().join("b.exr");
-    let (ok, _) = run(&["render", fixture("lattice_ascii_none_h64.vtu").to_str().unwrap(), "-o", b.to_str().unwrap(), "--size", "40x30", "--array", "velocity:mag"]);
+    let (ok, _) = run(&[
+        "render",
+        fixture("lattice_ascii_none_h64.vtu").to_str().unwrap(),
+        "-o",
+        b.to_str().unwrap(),
+        "--size",
+        "40x30",
+        "--array",
+        "velocity:mag",
+    ]);
     assert!(ok);
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast")).args(["compare", a.to_str().unwrap(), b.to_str().unwrap(), "--json"]).output().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args([
+            "compare",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--json",
+        ])
+        .output()
+        .unwrap();
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(c["max_abs"], 0.0);
     assert!(c["rmse"].is_number() && c["frac_above"].is_number());

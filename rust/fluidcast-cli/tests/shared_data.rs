@@ -1,18 +1,35 @@
 //! Every file in ../shared/data renders; the encodings of DoubleDamBreak frame 0011 give
 //! identical images.
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(rel);
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel);
     p.exists().then_some(p)
 }
 
-fn render(input: &PathBuf, out: &PathBuf, extra: &[&str]) {
-    let mut args = vec!["render".to_string(), input.display().to_string(), "-o".into(), out.display().to_string(), "--size".into(), "96x72".into()];
+fn render(input: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "render".to_string(),
+        input.display().to_string(),
+        "-o".into(),
+        out.display().to_string(),
+        "--size".into(),
+        "96x72".into(),
+    ];
     args.extend(extra.iter().map(|s| s.to_string()));
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast")).args(&args).output().unwrap();
-    assert!(o.status.success(), "{}: {}", input.display(), String::from_utf8_lossy(&o.stderr));
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args(&args)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}: {}",
+        input.display(),
+        String::from_utf8_lossy(&o.stderr)
+    );
 }
 
 #[test]
@@ -26,15 +43,35 @@ fn every_shared_file_renders() {
     for sub in ["splash_doubledambreak", "pysph_dambreak3d"] {
         for f in std::fs::read_dir(root.join(sub)).unwrap() {
             let f = f.unwrap().path();
-            if !matches!(f.extension().and_then(|e| e.to_str()), Some("vtu" | "vtp" | "pvd")) {
+            if !matches!(
+                f.extension().and_then(|e| e.to_str()),
+                Some("vtu" | "vtp" | "pvd")
+            ) {
                 continue;
             }
             let out = dir.path().join(format!("{n}.exr"));
             // PySPH files carry a per-particle smoothing length h (Wendland C2, H = 2h).
-            let extra: &[&str] = if sub == "pysph_dambreak3d" { &["--array", "p", "--radius-array", "h", "--radius-scale", "2", "--kernel", "wendland-c2"] } else { &["--array", "velocity:mag"] };
+            let extra: &[&str] = if sub == "pysph_dambreak3d" {
+                &[
+                    "--array",
+                    "p",
+                    "--radius-array",
+                    "h",
+                    "--radius-scale",
+                    "2",
+                    "--kernel",
+                    "wendland-c2",
+                ]
+            } else {
+                &["--array", "velocity:mag"]
+            };
             render(&f, &out, extra);
             let img = fluidcast_image::Image::read(&out).unwrap();
-            assert!(img.rgba.iter().any(|p| p[3] > 0.01), "{} rendered empty", f.display());
+            assert!(
+                img.rgba.iter().any(|p| p[3] > 0.01),
+                "{} rendered empty",
+                f.display()
+            );
             n += 1;
         }
     }
@@ -49,9 +86,29 @@ fn double_dam_break_encodings_give_identical_images() {
     };
     let dir = tempfile::tempdir().unwrap();
     let mut images = Vec::new();
-    for (i, name) in ["DoubleDamBreak_r0.0125_0011.vtu", "DoubleDamBreak_r0.0125_0011.vtp", "DoubleDamBreak_r0.0125_0011_raw.vtu", "DoubleDamBreak_r0.0125_0011_raw.vtp", "DoubleDamBreak_r0.0125_0011_ascii.vtu"].iter().enumerate() {
+    for (i, name) in [
+        "DoubleDamBreak_r0.0125_0011.vtu",
+        "DoubleDamBreak_r0.0125_0011.vtp",
+        "DoubleDamBreak_r0.0125_0011_raw.vtu",
+        "DoubleDamBreak_r0.0125_0011_raw.vtp",
+        "DoubleDamBreak_r0.0125_0011_ascii.vtu",
+    ]
+    .iter()
+    .enumerate()
+    {
         let out = dir.path().join(format!("{i}.exr"));
-        render(&d.join(name), &out, &["--array", "velocity:mag", "--azimuth", "30", "--elevation", "25"]);
+        render(
+            &d.join(name),
+            &out,
+            &[
+                "--array",
+                "velocity:mag",
+                "--azimuth",
+                "30",
+                "--elevation",
+                "25",
+            ],
+        );
         images.push(fluidcast_image::Image::read(&out).unwrap());
     }
     for img in &images[1..] {

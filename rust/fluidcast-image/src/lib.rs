@@ -5,7 +5,9 @@
 
 use std::path::{Path, PathBuf};
 
-use exr::prelude::{AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, WritableImage};
+use exr::prelude::{
+    AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, WritableImage,
+};
 
 /// An image problem, naming the file.
 #[derive(Debug, thiserror::Error)]
@@ -19,7 +21,10 @@ pub enum ImageError {
 }
 
 fn ferr(file: &Path, e: impl std::fmt::Display) -> ImageError {
-    ImageError::File { file: file.to_path_buf(), message: e.to_string() }
+    ImageError::File {
+        file: file.to_path_buf(),
+        message: e.to_string(),
+    }
 }
 
 /// A rendered image: premultiplied linear RGBA and, per pixel, the view depth (world units
@@ -37,7 +42,12 @@ impl Image {
     /// A transparent image with infinite depth.
     pub fn new(width: u32, height: u32) -> Image {
         let n = width as usize * height as usize;
-        Image { width, height, rgba: vec![[0.0; 4]; n], depth: vec![f32::INFINITY; n] }
+        Image {
+            width,
+            height,
+            rgba: vec![[0.0; 4]; n],
+            depth: vec![f32::INFINITY; n],
+        }
     }
 
     /// Pixel index of (i, j), j = 0 at the top.
@@ -70,7 +80,10 @@ impl Image {
             Encoding::FAST_LOSSLESS,
             channels,
         );
-        exr::prelude::Image::from_layer(layer).write().to_file(path).map_err(|e| ferr(path, e))
+        exr::prelude::Image::from_layer(layer)
+            .write()
+            .to_file(path)
+            .map_err(|e| ferr(path, e))
     }
 
     /// Composites over `background` (linear RGB) and writes 8-bit sRGB PNG (RGB).
@@ -101,8 +114,12 @@ impl Image {
     pub fn read(path: &Path) -> Result<Image, ImageError> {
         match ext(path).as_str() {
             "exr" => {
-                let img = exr::prelude::read_all_flat_layers_from_file(path).map_err(|e| ferr(path, e))?;
-                let layer = img.layer_data.first().ok_or_else(|| ferr(path, "no layers"))?;
+                let img = exr::prelude::read_all_flat_layers_from_file(path)
+                    .map_err(|e| ferr(path, e))?;
+                let layer = img
+                    .layer_data
+                    .first()
+                    .ok_or_else(|| ferr(path, "no layers"))?;
                 let (w, h) = (layer.size.0 as u32, layer.size.1 as u32);
                 let mut out = Image::new(w, h);
                 for c in &layer.channel_data.list {
@@ -124,13 +141,19 @@ impl Image {
             "png" => {
                 let f = std::fs::File::open(path).map_err(|e| ferr(path, e))?;
                 let mut dec = png::Decoder::new(std::io::BufReader::new(f));
-                dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+                dec.set_transformations(
+                    png::Transformations::EXPAND | png::Transformations::STRIP_16,
+                );
                 let mut r = dec.read_info().map_err(|e| ferr(path, e))?;
                 let mut buf = vec![0; r.output_buffer_size()];
                 let info = r.next_frame(&mut buf).map_err(|e| ferr(path, e))?;
                 let nc = info.color_type.samples();
                 let mut out = Image::new(info.width, info.height);
-                for (p, px) in out.rgba.iter_mut().zip(buf[..info.buffer_size()].chunks_exact(nc)) {
+                for (p, px) in out
+                    .rgba
+                    .iter_mut()
+                    .zip(buf[..info.buffer_size()].chunks_exact(nc))
+                {
                     let g = |k: usize| srgb_to_linear(px[k] as f32 / 255.0);
                     *p = match nc {
                         1 => [g(0), g(0), g(0), 1.0],
@@ -147,7 +170,10 @@ impl Image {
 }
 
 fn ext(p: &Path) -> String {
-    p.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+    p.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 /// sRGB transfer curve (IEC 61966-2-1).
@@ -185,7 +211,9 @@ pub struct Comparison {
 /// opaque image scaled by `1/tolerance` for visibility (clamped).
 pub fn compare(a: &Image, b: &Image, tolerance: f64) -> Result<(Comparison, Image), ImageError> {
     if (a.width, a.height) != (b.width, b.height) {
-        return Err(ImageError::SizeMismatch(a.width, a.height, b.width, b.height));
+        return Err(ImageError::SizeMismatch(
+            a.width, a.height, b.width, b.height,
+        ));
     }
     let mut max_abs = 0.0f64;
     let mut sq = 0.0f64;
@@ -205,7 +233,12 @@ pub fn compare(a: &Image, b: &Image, tolerance: f64) -> Result<(Comparison, Imag
     }
     let n = a.rgba.len().max(1);
     Ok((
-        Comparison { max_abs, rmse: (sq / (4 * n) as f64).sqrt(), frac_above: above as f64 / n as f64, tolerance },
+        Comparison {
+            max_abs,
+            rmse: (sq / (4 * n) as f64).sqrt(),
+            frac_above: above as f64 / n as f64,
+            tolerance,
+        },
         diff,
     ))
 }

@@ -13,7 +13,10 @@ use vtkio::model::{Attribute, DataSet, FieldArray, IOBuffer, Piece};
 use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
 fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
-    hay.get(from..)?.windows(needle.len()).position(|w| w == needle).map(|p| p + from)
+    hay.get(from..)?
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .map(|p| p + from)
 }
 
 fn line_end(b: &[u8], from: usize) -> usize {
@@ -22,7 +25,9 @@ fn line_end(b: &[u8], from: usize) -> usize {
 
 fn vtkio_parse(bytes: &[u8]) -> Result<vtkio::Vtk, String> {
     let owned = bytes.to_vec();
-    match catch_unwind(AssertUnwindSafe(move || vtkio::Vtk::parse_legacy_be(owned.as_slice()))) {
+    match catch_unwind(AssertUnwindSafe(move || {
+        vtkio::Vtk::parse_legacy_be(owned.as_slice())
+    })) {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(e)) => Err(format!("{e:?}")),
         Err(p) => Err(format!(
@@ -87,7 +92,11 @@ fn rename_int64_types(b: &[u8]) -> Vec<u8> {
             i += 1;
             continue;
         };
-        let line_start = b[..i].iter().rposition(|&c| c == b'\n').map(|p| p + 1).unwrap_or(0);
+        let line_start = b[..i]
+            .iter()
+            .rposition(|&c| c == b'\n')
+            .map(|p| p + 1)
+            .unwrap_or(0);
         let line = &b[line_start..i];
         if line.starts_with(b"OFFSETS") || line.starts_with(b"CONNECTIVITY") {
             out.extend_from_slice(pat);
@@ -102,24 +111,32 @@ fn rename_int64_types(b: &[u8]) -> Vec<u8> {
 pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     let err = |k| ReadError::new(path, k);
     if !bytes.starts_with(b"# vtk DataFile") {
-        return Err(err(ReadErrorKind::Format("not a legacy VTK file (no '# vtk DataFile' header)".into())));
+        return Err(err(ReadErrorKind::Format(
+            "not a legacy VTK file (no '# vtk DataFile' header)".into(),
+        )));
     }
     // Header: version line, title line, ASCII|BINARY line.
     let l1 = line_end(bytes, 0);
     let l2 = line_end(bytes, l1);
     let l3 = line_end(bytes, l2);
     let header = &bytes[..l3];
-    let ds_line = find(bytes, b"DATASET", l3).ok_or_else(|| err(ReadErrorKind::Format("no DATASET line".into())))?;
+    let ds_line = find(bytes, b"DATASET", l3)
+        .ok_or_else(|| err(ReadErrorKind::Format("no DATASET line".into())))?;
     let after_ds = line_end(bytes, ds_line);
     let mut field_data = Vec::new();
     let mut body: Vec<u8> = bytes.to_vec();
     if bytes[after_ds..].starts_with(b"FIELD") {
         let end = find(bytes, b"\nPOINTS ", after_ds)
             .map(|p| p + 1)
-            .ok_or_else(|| err(ReadErrorKind::Format("FIELD block not followed by POINTS".into())))?;
+            .ok_or_else(|| {
+                err(ReadErrorKind::Format(
+                    "FIELD block not followed by POINTS".into(),
+                ))
+            })?;
         let mut mini = header.to_vec();
         mini.extend_from_slice(&bytes[after_ds..end]);
-        let v = vtkio_parse(&mini).map_err(|m| err(ReadErrorKind::Library(format!("field data: {m}"))))?;
+        let v = vtkio_parse(&mini)
+            .map_err(|m| err(ReadErrorKind::Library(format!("field data: {m}"))))?;
         if let DataSet::Field { data_array, .. } = &v.data {
             field_data = field_arrays(data_array);
         }
@@ -145,7 +162,9 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     };
     let (_, pv) = buffer(&points);
     if pv.len() % 3 != 0 {
-        return Err(err(ReadErrorKind::Format("POINTS holds a number of values not divisible by 3".into())));
+        return Err(err(ReadErrorKind::Format(
+            "POINTS holds a number of values not divisible by 3".into(),
+        )));
     }
     let points: Vec<[f64; 3]> = pv.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
     let mut point_data = Vec::new();

@@ -204,7 +204,8 @@ impl Dataset {
 
     /// First value of a field-data array, e.g. `support_radius` or `TIME`.
     pub fn field_scalar(&self, name: &str) -> Option<f64> {
-        self.field_array(name).and_then(|a| a.values.first().copied())
+        self.field_array(name)
+            .and_then(|a| a.values.first().copied())
     }
 
     /// Axis-aligned bounds of the finite points, `None` if there are none.
@@ -212,7 +213,11 @@ impl Dataset {
         let mut lo = [f64::INFINITY; 3];
         let mut hi = [f64::NEG_INFINITY; 3];
         let mut any = false;
-        for p in self.points.iter().filter(|p| p.iter().all(|v| v.is_finite())) {
+        for p in self
+            .points
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()))
+        {
             any = true;
             for k in 0..3 {
                 lo[k] = lo[k].min(p[k]);
@@ -242,7 +247,10 @@ pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
             path,
             ReadErrorKind::Format("a .pvd is a collection: read it with read_collection".into()),
         )),
-        _ => Err(ReadError::new(path, ReadErrorKind::UnsupportedExtension(ext.clone()))),
+        _ => Err(ReadError::new(
+            path,
+            ReadErrorKind::UnsupportedExtension(ext.clone()),
+        )),
     }?;
     validate(&ds)?;
     Ok(ds)
@@ -281,14 +289,21 @@ impl Input {
     /// else is a single file.
     pub fn open(path: impl AsRef<Path>) -> Result<Input, ReadError> {
         let path = path.as_ref();
-        if path.extension().and_then(|e| e.to_str()).map(|e| e.eq_ignore_ascii_case("pvd")) == Some(true)
+        if path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.eq_ignore_ascii_case("pvd"))
+            == Some(true)
         {
             Ok(Input::Series(read_collection(path)?))
         } else {
             if !path.exists() {
                 return Err(ReadError::new(
                     path,
-                    ReadErrorKind::Io(std::io::Error::new(std::io::ErrorKind::NotFound, "no such file")),
+                    ReadErrorKind::Io(std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        "no such file",
+                    )),
                 ));
             }
             Ok(Input::File(path.to_path_buf()))
@@ -300,7 +315,11 @@ impl Input {
     pub fn frames(&self) -> Vec<(Option<f64>, PathBuf)> {
         match self {
             Input::File(p) => vec![(None, p.clone())],
-            Input::Series(c) => c.entries.iter().map(|e| (Some(e.timestep), e.file.clone())).collect(),
+            Input::Series(c) => c
+                .entries
+                .iter()
+                .map(|e| (Some(e.timestep), e.file.clone()))
+                .collect(),
         }
     }
 }

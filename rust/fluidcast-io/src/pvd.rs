@@ -33,22 +33,31 @@ pub fn read_collection(path: impl AsRef<Path>) -> Result<Collection, ReadError> 
     let mut entries = Vec::new();
     let mut saw_collection = false;
     loop {
-        match reader.read_event().map_err(|e| err(ReadErrorKind::Xml(e.to_string())))? {
+        match reader
+            .read_event()
+            .map_err(|e| err(ReadErrorKind::Xml(e.to_string())))?
+        {
             Event::Start(e) | Event::Empty(e) => match e.name().as_ref() {
                 b"Collection" => saw_collection = true,
                 b"DataSet" => {
                     let a = attrs(&e).map_err(|m| err(ReadErrorKind::Xml(m)))?;
-                    let file = a
-                        .get("file")
-                        .ok_or_else(|| err(ReadErrorKind::Format("<DataSet> without a 'file' attribute".into())))?;
+                    let file = a.get("file").ok_or_else(|| {
+                        err(ReadErrorKind::Format(
+                            "<DataSet> without a 'file' attribute".into(),
+                        ))
+                    })?;
                     let timestep = match a.get("timestep") {
-                        Some(t) => t
-                            .trim()
-                            .parse::<f64>()
-                            .map_err(|_| err(ReadErrorKind::Format(format!("bad timestep '{t}' for {file}"))))?,
+                        Some(t) => t.trim().parse::<f64>().map_err(|_| {
+                            err(ReadErrorKind::Format(format!(
+                                "bad timestep '{t}' for {file}"
+                            )))
+                        })?,
                         None => 0.0,
                     };
-                    let part = a.get("part").and_then(|p| p.trim().parse().ok()).unwrap_or(0);
+                    let part = a
+                        .get("part")
+                        .and_then(|p| p.trim().parse().ok())
+                        .unwrap_or(0);
                     entries.push(CollectionEntry {
                         timestep,
                         part,
@@ -62,10 +71,14 @@ pub fn read_collection(path: impl AsRef<Path>) -> Result<Collection, ReadError> 
         }
     }
     if !saw_collection {
-        return Err(err(ReadErrorKind::Format("not a .pvd collection (no <Collection> element)".into())));
+        return Err(err(ReadErrorKind::Format(
+            "not a .pvd collection (no <Collection> element)".into(),
+        )));
     }
     if entries.is_empty() {
-        return Err(err(ReadErrorKind::Format("the collection lists no data sets".into())));
+        return Err(err(ReadErrorKind::Format(
+            "the collection lists no data sets".into(),
+        )));
     }
     entries.sort_by(|a, b| a.timestep.total_cmp(&b.timestep));
     Ok(Collection {

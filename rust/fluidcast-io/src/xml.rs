@@ -41,7 +41,11 @@ impl Ctx {
         let s = b.get(i * hb..(i + 1) * hb)?;
         Some(if hb == 4 {
             let a: [u8; 4] = s.try_into().ok()?;
-            (if self.big_endian { u32::from_be_bytes(a) } else { u32::from_le_bytes(a) }) as u64
+            (if self.big_endian {
+                u32::from_be_bytes(a)
+            } else {
+                u32::from_le_bytes(a)
+            }) as u64
         } else {
             let a: [u8; 8] = s.try_into().ok()?;
             if self.big_endian {
@@ -92,7 +96,10 @@ fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
     if from >= hay.len() {
         return None;
     }
-    hay[from..].windows(needle.len()).position(|w| w == needle).map(|p| p + from)
+    hay[from..]
+        .windows(needle.len())
+        .position(|w| w == needle)
+        .map(|p| p + from)
 }
 
 /// Parses a `.vtu` or `.vtp` file's bytes.
@@ -101,12 +108,18 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     // Split off the appended section before XML parsing.
     let (head, appended, appended_b64) = match find(bytes, b"<AppendedData", 0) {
         Some(start) => {
-            let close = find(bytes, b">", start)
-                .ok_or_else(|| err(ReadErrorKind::Truncated("unterminated <AppendedData> tag".into())))?;
+            let close = find(bytes, b">", start).ok_or_else(|| {
+                err(ReadErrorKind::Truncated(
+                    "unterminated <AppendedData> tag".into(),
+                ))
+            })?;
             let tag = String::from_utf8_lossy(&bytes[start..close]);
             let b64 = tag.contains("encoding=\"base64\"") || tag.contains("encoding='base64'");
-            let us = find(bytes, b"_", close)
-                .ok_or_else(|| err(ReadErrorKind::Truncated("appended data has no '_' marker".into())))?;
+            let us = find(bytes, b"_", close).ok_or_else(|| {
+                err(ReadErrorKind::Truncated(
+                    "appended data has no '_' marker".into(),
+                ))
+            })?;
             (&bytes[..start], Some(&bytes[us + 1..]), b64)
         }
         None => (bytes, None, false),
@@ -125,9 +138,12 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     let mut nested = 0usize;
     let mut field_counts: Vec<Option<usize>> = Vec::new();
     loop {
-        let ev = reader
-            .read_event()
-            .map_err(|e| err(ReadErrorKind::Xml(format!("{e} (at byte {})", reader.buffer_position()))))?;
+        let ev = reader.read_event().map_err(|e| {
+            err(ReadErrorKind::Xml(format!(
+                "{e} (at byte {})",
+                reader.buffer_position()
+            )))
+        })?;
         match ev {
             Event::Start(ref e) | Event::Empty(ref e) => {
                 let empty = matches!(ev, Event::Empty(_));
@@ -193,15 +209,19 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
                         decls.push(d);
                     }
                 }
-                b"Points" | b"PointData" | b"FieldData" | b"CellData" | b"Cells" | b"Verts" | b"Lines"
-                | b"Strips" | b"Polys" => section = Section::None,
+                b"Points" | b"PointData" | b"FieldData" | b"CellData" | b"Cells" | b"Verts"
+                | b"Lines" | b"Strips" | b"Polys" => section = Section::None,
                 _ => {}
             },
             Event::Eof => break,
             _ => {}
         }
     }
-    let fa = file_attrs.ok_or_else(|| err(ReadErrorKind::Format("not a VTK XML file (no <VTKFile> element)".into())))?;
+    let fa = file_attrs.ok_or_else(|| {
+        err(ReadErrorKind::Format(
+            "not a VTK XML file (no <VTKFile> element)".into(),
+        ))
+    })?;
     let kind = kind.ok_or_else(|| {
         err(ReadErrorKind::Format(format!(
             "VTKFile type '{}' is not supported (expected UnstructuredGrid or PolyData)",
@@ -211,18 +231,29 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     if pieces.is_empty() {
         return Err(err(ReadErrorKind::Format("no <Piece> element".into())));
     }
-    let big_endian = fa.get("byte_order").map(|s| s == "BigEndian").unwrap_or(false);
+    let big_endian = fa
+        .get("byte_order")
+        .map(|s| s == "BigEndian")
+        .unwrap_or(false);
     let header = match fa.get("header_type").map(String::as_str) {
         None | Some("UInt32") => ScalarType::U32,
         Some("UInt64") => ScalarType::U64,
-        Some(o) => return Err(err(ReadErrorKind::Format(format!("unsupported header_type '{o}'")))),
+        Some(o) => {
+            return Err(err(ReadErrorKind::Format(format!(
+                "unsupported header_type '{o}'"
+            ))))
+        }
     };
     let compressor = match fa.get("compressor").map(String::as_str) {
         None | Some("") => None,
         Some("vtkZLibDataCompressor") => Some(Compressor::Zlib),
         Some("vtkLZ4DataCompressor") => Some(Compressor::Lz4),
         Some("vtkLZMADataCompressor") => Some(Compressor::Lzma),
-        Some(o) => return Err(err(ReadErrorKind::Format(format!("unsupported compressor '{o}'")))),
+        Some(o) => {
+            return Err(err(ReadErrorKind::Format(format!(
+                "unsupported compressor '{o}'"
+            ))))
+        }
     };
     let ctx = Ctx {
         big_endian,
@@ -242,13 +273,21 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         }
         let aerr = |problem: String| {
             err(ReadErrorKind::Array {
-                array: if name.is_empty() { "(unnamed)".into() } else { name.clone() },
+                array: if name.is_empty() {
+                    "(unnamed)".into()
+                } else {
+                    name.clone()
+                },
                 problem,
             })
         };
-        let st = ScalarType::from_vtk_name(type_name).ok_or_else(|| aerr(format!("unknown type '{type_name}'")))?;
+        let st = ScalarType::from_vtk_name(type_name)
+            .ok_or_else(|| aerr(format!("unknown type '{type_name}'")))?;
         let nc: usize = match d.attrs.get("NumberOfComponents") {
-            Some(s) => s.trim().parse().map_err(|_| aerr(format!("bad NumberOfComponents '{s}'")))?,
+            Some(s) => s
+                .trim()
+                .parse()
+                .map_err(|_| aerr(format!("bad NumberOfComponents '{s}'")))?,
             None => 1,
         };
         if nc == 0 {
@@ -257,7 +296,11 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         let expected_tuples = match d.section {
             Section::Points | Section::PointData => Some(pieces[d.piece].num_points),
             _ => match d.attrs.get("NumberOfTuples") {
-                Some(s) => Some(s.trim().parse().map_err(|_| aerr(format!("bad NumberOfTuples '{s}'")))?),
+                Some(s) => Some(
+                    s.trim()
+                        .parse()
+                        .map_err(|_| aerr(format!("bad NumberOfTuples '{s}'")))?,
+                ),
                 None => None,
             },
         };
@@ -265,18 +308,30 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         let values = match format {
             "ascii" => parse_ascii(&d.text, st).map_err(&aerr)?,
             "binary" => {
-                let text: Vec<u8> = d.text.iter().copied().filter(|c| !c.is_ascii_whitespace()).collect();
-                st.decode(&decode_base64_payload(&text, ctx).map_err(&aerr)?, big_endian)
+                let text: Vec<u8> = d
+                    .text
+                    .iter()
+                    .copied()
+                    .filter(|c| !c.is_ascii_whitespace())
+                    .collect();
+                st.decode(
+                    &decode_base64_payload(&text, ctx).map_err(&aerr)?,
+                    big_endian,
+                )
             }
             "appended" => {
-                let app = appended.ok_or_else(|| aerr("format is 'appended' but the file has no <AppendedData>".into()))?;
+                let app = appended.ok_or_else(|| {
+                    aerr("format is 'appended' but the file has no <AppendedData>".into())
+                })?;
                 let off: usize = d
                     .attrs
                     .get("offset")
                     .and_then(|s| s.trim().parse().ok())
                     .ok_or_else(|| aerr("appended array without a valid offset".into()))?;
                 let src = app.get(off..).ok_or_else(|| {
-                    aerr(format!("offset {off} is beyond the end of the appended data (file truncated?)"))
+                    aerr(format!(
+                        "offset {off} is beyond the end of the appended data (file truncated?)"
+                    ))
                 })?;
                 let raw = if appended_b64 {
                     decode_base64_payload(src, ctx)
@@ -327,17 +382,28 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         match &p.points {
             Some(a) => points.extend(a.values.chunks_exact(3).map(|c| [c[0], c[1], c[2]])),
             None if p.num_points == 0 => {}
-            None => return Err(err(ReadErrorKind::Format(format!("piece {i} has {} points but no <Points> array", p.num_points)))),
+            None => {
+                return Err(err(ReadErrorKind::Format(format!(
+                    "piece {i} has {} points but no <Points> array",
+                    p.num_points
+                ))))
+            }
         }
     }
     let mut point_data: Vec<DataArray> = pieces[0].point_data.clone();
     for p in &pieces[1..] {
-        point_data.retain_mut(|a| match p.point_data.iter().find(|b| b.name == a.name && b.num_components == a.num_components) {
-            Some(b) => {
-                a.values.extend_from_slice(&b.values);
-                true
+        point_data.retain_mut(|a| {
+            match p
+                .point_data
+                .iter()
+                .find(|b| b.name == a.name && b.num_components == a.num_components)
+            {
+                Some(b) => {
+                    a.values.extend_from_slice(&b.values);
+                    true
+                }
+                None => false,
             }
-            None => false,
         });
     }
     Ok(Dataset {
@@ -351,7 +417,10 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
 
 fn parse_count(a: &HashMap<String, String>, key: &str) -> Result<usize, ReadErrorKind> {
     match a.get(key) {
-        Some(s) => s.trim().parse().map_err(|_| ReadErrorKind::Format(format!("bad {key} '{s}'"))),
+        Some(s) => s
+            .trim()
+            .parse()
+            .map_err(|_| ReadErrorKind::Format(format!("bad {key} '{s}'"))),
         None => Ok(0),
     }
 }
@@ -383,15 +452,21 @@ fn decompress(c: Compressor, data: &[u8], size: usize) -> Result<Vec<u8>, String
                 .map_err(|e| format!("zlib block: {e}"))?;
             out
         }
-        Compressor::Lz4 => lz4_flex::block::decompress(data, size).map_err(|e| format!("lz4 block: {e}"))?,
+        Compressor::Lz4 => {
+            lz4_flex::block::decompress(data, size).map_err(|e| format!("lz4 block: {e}"))?
+        }
         Compressor::Lzma => {
             let mut out = Vec::with_capacity(size);
-            lzma_rs::xz_decompress(&mut std::io::Cursor::new(data), &mut out).map_err(|e| format!("lzma block: {e}"))?;
+            lzma_rs::xz_decompress(&mut std::io::Cursor::new(data), &mut out)
+                .map_err(|e| format!("lzma block: {e}"))?;
             out
         }
     };
     if out.len() != size {
-        return Err(format!("a compressed block gave {} bytes, its header says {size}", out.len()));
+        return Err(format!(
+            "a compressed block gave {} bytes, its header says {size}",
+            out.len()
+        ));
     }
     Ok(out)
 }
@@ -407,7 +482,9 @@ impl BlockHeader {
         let short = || "compression header is truncated".to_string();
         let nb = ctx.word(b, 0).ok_or_else(short)? as usize;
         if nb > b.len() {
-            return Err(format!("compression header claims {nb} blocks, more than the file holds"));
+            return Err(format!(
+                "compression header claims {nb} blocks, more than the file holds"
+            ));
         }
         let block_size = ctx.word(b, 1).ok_or_else(short)? as usize;
         let last = ctx.word(b, 2).ok_or_else(short)? as usize;
@@ -431,10 +508,16 @@ impl BlockHeader {
         let mut out = Vec::with_capacity(nb * self.block_size);
         let mut pos = 0usize;
         for (i, &cs) in self.compressed.iter().enumerate() {
-            let blk = data
-                .get(pos..pos + cs)
-                .ok_or_else(|| format!("compressed block {i} of {nb} runs past the end of the data (file truncated?)"))?;
-            let size = if i + 1 == nb { self.last_size } else { self.block_size };
+            let blk = data.get(pos..pos + cs).ok_or_else(|| {
+                format!(
+                    "compressed block {i} of {nb} runs past the end of the data (file truncated?)"
+                )
+            })?;
+            let size = if i + 1 == nb {
+                self.last_size
+            } else {
+                self.block_size
+            };
             out.extend(decompress(c, blk, size)?);
             pos += cs;
         }
@@ -450,7 +533,9 @@ fn decode_raw_payload(src: &[u8], ctx: Ctx) -> Result<Vec<u8>, String> {
             let hb = ctx.hb();
             src.get(hb..hb.saturating_add(n))
                 .map(<[u8]>::to_vec)
-                .ok_or_else(|| format!("header says {n} bytes but the file ends first (file truncated?)"))
+                .ok_or_else(|| {
+                    format!("header says {n} bytes but the file ends first (file truncated?)")
+                })
         }
         Some(c) => {
             let h = BlockHeader::parse(src, ctx)?;
@@ -484,7 +569,7 @@ fn decode_base64_payload(text: &[u8], ctx: Ctx) -> Result<Vec<u8>, String> {
             let hc = b64_chars(hb);
             let head = b64(b64_slice(text, 0, hc)?)?;
             let n = ctx.word(&head, 0).ok_or("data header is truncated")? as usize;
-            let separate = hb % 3 != 0 && text.get(hc - 1) == Some(&b'=');
+            let separate = !hb.is_multiple_of(3) && text.get(hc - 1) == Some(&b'=');
             if separate {
                 b64(b64_slice(text, hc, b64_chars(n))?)
             } else {
@@ -495,13 +580,17 @@ fn decode_base64_payload(text: &[u8], ctx: Ctx) -> Result<Vec<u8>, String> {
         Some(c) => {
             // The first three words take exactly 4*hb characters (3*hb bytes, no padding).
             let first = b64(b64_slice(text, 0, 4 * hb)?)?;
-            let nb = ctx.word(&first, 0).ok_or("compression header is truncated")? as usize;
+            let nb = ctx
+                .word(&first, 0)
+                .ok_or("compression header is truncated")? as usize;
             let hlen = (3 + nb) * hb;
             let hc = b64_chars(hlen);
             if hc > text.len() {
-                return Err("compression header runs past the end of the data (file truncated?)".into());
+                return Err(
+                    "compression header runs past the end of the data (file truncated?)".into(),
+                );
             }
-            let separate = hlen % 3 == 0 || text.get(hc - 1) == Some(&b'=');
+            let separate = hlen.is_multiple_of(3) || text.get(hc - 1) == Some(&b'=');
             let header_bytes = b64(b64_slice(text, 0, hc)?)?;
             let h = BlockHeader::parse(&header_bytes, ctx)?;
             let total = h.total_compressed();

@@ -4,14 +4,33 @@ use common::fixture;
 use fluidcast_io::{read_collection, read_dataset, Dataset, ScalarType};
 
 fn same(a: &Dataset, b: &Dataset) {
-    assert_eq!(a.points, b.points, "{} vs {}", a.path.display(), b.path.display());
-    let names = |d: &Dataset| d.point_data.iter().map(|x| x.name.clone()).collect::<Vec<_>>();
+    assert_eq!(
+        a.points,
+        b.points,
+        "{} vs {}",
+        a.path.display(),
+        b.path.display()
+    );
+    let names = |d: &Dataset| {
+        d.point_data
+            .iter()
+            .map(|x| x.name.clone())
+            .collect::<Vec<_>>()
+    };
     assert_eq!(names(a), names(b), "{}", b.path.display());
     for (x, y) in a.point_data.iter().zip(&b.point_data) {
         assert_eq!(x, y, "array {} of {}", x.name, b.path.display());
     }
-    assert_eq!(a.field_scalar("TIME"), b.field_scalar("TIME"), "{}", b.path.display());
-    assert_eq!(a.field_scalar("support_radius"), b.field_scalar("support_radius"));
+    assert_eq!(
+        a.field_scalar("TIME"),
+        b.field_scalar("TIME"),
+        "{}",
+        b.path.display()
+    );
+    assert_eq!(
+        a.field_scalar("support_radius"),
+        b.field_scalar("support_radius")
+    );
 }
 
 #[test]
@@ -22,7 +41,10 @@ fn all_xml_encodings_agree_with_ascii() {
         assert_eq!(reference.point_data.len(), 6);
         let v = reference.point_array("velocity").unwrap();
         assert_eq!((v.num_components, v.scalar_type), (3, ScalarType::F32));
-        assert_eq!(reference.point_array("ubig").unwrap().scalar_type, ScalarType::U64);
+        assert_eq!(
+            reference.point_array("ubig").unwrap().scalar_type,
+            ScalarType::U64
+        );
         assert_eq!(reference.field_scalar("TIME"), Some(0.25));
         let mut n = 0;
         for entry in std::fs::read_dir(fixture("")).unwrap() {
@@ -56,10 +78,16 @@ fn legacy_files_agree_with_xml() {
             }
         }
         for a in &reference.point_data {
-            let b = d.point_array(&a.name).unwrap_or_else(|| panic!("{name} lacks {}", a.name));
+            let b = d
+                .point_array(&a.name)
+                .unwrap_or_else(|| panic!("{name} lacks {}", a.name));
             assert_eq!(b.num_components, a.num_components, "{name}: {}", a.name);
             for (x, y) in a.values.iter().zip(&b.values) {
-                assert!((x - y).abs() <= 1e-5 * x.abs().max(1.0), "{name}: {} {x} vs {y}", a.name);
+                assert!(
+                    (x - y).abs() <= 1e-5 * x.abs().max(1.0),
+                    "{name}: {} {x} vs {y}",
+                    a.name
+                );
             }
         }
         assert_eq!(d.field_scalar("support_radius"), Some(0.03), "{name}");

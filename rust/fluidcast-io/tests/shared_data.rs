@@ -43,7 +43,12 @@ fn double_dam_break_encodings_identical() {
     let base = read_dataset(dir.join("DoubleDamBreak_r0.0125_0011.vtu")).unwrap();
     assert_eq!(base.points.len(), 42282);
     assert_eq!(base.field_scalar("support_radius"), Some(0.05f32 as f64)); // stored as Float32
-    for name in ["DoubleDamBreak_r0.0125_0011.vtp", "DoubleDamBreak_r0.0125_0011_raw.vtu", "DoubleDamBreak_r0.0125_0011_raw.vtp", "DoubleDamBreak_r0.0125_0011_ascii.vtu"] {
+    for name in [
+        "DoubleDamBreak_r0.0125_0011.vtp",
+        "DoubleDamBreak_r0.0125_0011_raw.vtu",
+        "DoubleDamBreak_r0.0125_0011_raw.vtp",
+        "DoubleDamBreak_r0.0125_0011_ascii.vtu",
+    ] {
         let d = read_dataset(dir.join(name)).unwrap();
         assert_eq!(d.points, base.points, "{name}");
         for a in &base.point_data {

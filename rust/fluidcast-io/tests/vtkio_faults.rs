@@ -12,11 +12,18 @@ fn lattice_z(i: usize) -> f64 {
 
 #[test]
 fn vtkio_itself_fails_on_these_files() {
-    for name in ["lattice_appended-raw_none_h64.vtu", "fault_zlib_full_last_block.vtu", "fault_compressed_polydata.vtp"] {
+    for name in [
+        "lattice_appended-raw_none_h64.vtu",
+        "fault_zlib_full_last_block.vtu",
+        "fault_compressed_polydata.vtp",
+    ] {
         let path = fixture(name);
         let r = std::panic::catch_unwind(|| vtkio::Vtk::import(&path).map(|_| ()));
         match &r {
-            Ok(Err(e)) => assert!(!format!("{e:?}").contains("feature"), "vtkio built without XML: {e:?}"),
+            Ok(Err(e)) => assert!(
+                !format!("{e:?}").contains("feature"),
+                "vtkio built without XML: {e:?}"
+            ),
             Ok(Ok(())) => panic!("vtkio now reads {name}: the workaround may be obsolete"),
             Err(_) => {} // panicked, as documented
         }

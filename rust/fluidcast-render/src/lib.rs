@@ -11,4 +11,6 @@
 
 mod reference;
 
-pub use reference::{render_reference, RenderError, RenderParams, RenderStats, SampleDepths, MAX_SIDE};
+pub use reference::{
+    render_reference, RenderError, RenderParams, RenderStats, SampleDepths, MAX_SIDE,
+};

@@ -82,9 +82,17 @@ pub struct SampleDepths {
 
 impl SampleDepths {
     /// Depth planes for a view-depth range; see the crate docs for the choice of N.
-    pub fn new(frame: &ViewFrame, near: f64, far: f64, scale: f64) -> Result<SampleDepths, RenderError> {
+    pub fn new(
+        frame: &ViewFrame,
+        near: f64,
+        far: f64,
+        scale: f64,
+    ) -> Result<SampleDepths, RenderError> {
         let (n, logarithmic) = match frame.parallel {
-            Some(_) => (((far - near) / frame.pixel_size_at(1.0) * scale).ceil(), false),
+            Some(_) => (
+                ((far - near) / frame.pixel_size_at(1.0) * scale).ceil(),
+                false,
+            ),
             None => {
                 let sigma = 2.0 * frame.tan_half / frame.height as f64;
                 let t = frame.tan_half;
@@ -93,7 +101,11 @@ impl SampleDepths {
             }
         };
         if !n.is_finite() || n > MAX_SAMPLES as f64 {
-            return Err(RenderError::TooManySamples(if n.is_finite() { n as usize } else { usize::MAX }));
+            return Err(RenderError::TooManySamples(if n.is_finite() {
+                n as usize
+            } else {
+                usize::MAX
+            }));
         }
         let n = (n as usize).max(1);
         let z = (0..=n)
@@ -106,7 +118,12 @@ impl SampleDepths {
                 }
             })
             .collect();
-        Ok(SampleDepths { z, near, far, logarithmic })
+        Ok(SampleDepths {
+            z,
+            near,
+            far,
+            logarithmic,
+        })
     }
 
     /// Number of samples N.
@@ -148,6 +165,9 @@ impl SampleDepths {
     }
 }
 
+/// One tile's output: tile index, (premultiplied RGBA, depth) per pixel, samples taken.
+type TileResult = (u32, Vec<([f32; 4], f32)>, u64);
+
 /// A particle in view space, as the tiles hold it.
 #[derive(Clone, Copy)]
 struct ViewParticle {
@@ -175,7 +195,12 @@ pub fn render_reference(
         return Err(RenderError::SamplingScale(params.sampling_scale));
     }
     let frame = camera.frame(w, h)?;
-    let mut stats = RenderStats { particles: particles.len(), width: w, height: h, ..Default::default() };
+    let mut stats = RenderStats {
+        particles: particles.len(),
+        width: w,
+        height: h,
+        ..Default::default()
+    };
     let mut image = Image::new(w, h);
 
     // View-space particles and the depth range they occupy.
@@ -192,15 +217,25 @@ pub fn render_reference(
             }
         })
         .collect();
-    let zmax = vps.iter().map(|p| p.c[2] + p.h).fold(f64::NEG_INFINITY, f64::max);
-    let zmin = vps.iter().map(|p| p.c[2] - p.h).fold(f64::INFINITY, f64::min);
+    let zmax = vps
+        .iter()
+        .map(|p| p.c[2] + p.h)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let zmin = vps
+        .iter()
+        .map(|p| p.c[2] - p.h)
+        .fold(f64::INFINITY, f64::min);
     let perspective = frame.parallel.is_none();
     if vps.is_empty() || (perspective && zmax <= 0.0) {
         stats.stages.push(("total", ms(t0)));
         return Ok((image, stats)); // everything behind the camera
     }
     let far = zmax;
-    let near = if perspective { zmin.max(far * 1e-4) } else { zmin };
+    let near = if perspective {
+        zmin.max(far * 1e-4)
+    } else {
+        zmin
+    };
     let depths = SampleDepths::new(&frame, near, far, params.sampling_scale)?;
     stats.depth_samples = depths.len();
     stats.near = near;
@@ -226,8 +261,16 @@ pub fn render_reference(
                 // x/z over the box [x±h]×[z±h] (z > 0) is extreme at its corners.
                 let zs = [z - p.h, z + p.h];
                 let ext = |c: f64| {
-                    let v = [(c - p.h) / zs[0], (c - p.h) / zs[1], (c + p.h) / zs[0], (c + p.h) / zs[1]];
-                    (v.iter().copied().fold(f64::INFINITY, f64::min), v.iter().copied().fold(f64::NEG_INFINITY, f64::max))
+                    let v = [
+                        (c - p.h) / zs[0],
+                        (c - p.h) / zs[1],
+                        (c + p.h) / zs[0],
+                        (c + p.h) / zs[1],
+                    ];
+                    (
+                        v.iter().copied().fold(f64::INFINITY, f64::min),
+                        v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                    )
                 };
                 let (a, b) = ext(x);
                 let (c, d) = ext(y);
@@ -257,7 +300,7 @@ pub fn render_reference(
 
     // Ray cast tile by tile.
     let t1 = Instant::now();
-    let results: Vec<(u32, Vec<([f32; 4], f32)>, u64)> = bins
+    let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()
         .map(|(t, list)| {
@@ -307,7 +350,11 @@ struct Accumulator {
 
 impl Accumulator {
     fn new(n: usize) -> Self {
-        Accumulator { weighted: vec![0.0; n], shepard: vec![0.0; n], density: vec![0.0; n] }
+        Accumulator {
+            weighted: vec![0.0; n],
+            shepard: vec![0.0; n],
+            density: vec![0.0; n],
+        }
     }
 }
 
@@ -326,7 +373,10 @@ fn cast_ray(
     let (x, y) = frame.ndc(i as f64, j as f64);
     let (o, d) = match frame.parallel {
         Some(s) => ([x * s * frame.aspect, y * s, 0.0], [0.0, 0.0, 1.0]),
-        None => ([0.0; 3], [x * frame.tan_half * frame.aspect, y * frame.tan_half, 1.0]),
+        None => (
+            [0.0; 3],
+            [x * frame.tan_half * frame.aspect, y * frame.tan_half, 1.0],
+        ),
     };
     let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     let dlen = dd.sqrt();
@@ -349,7 +399,11 @@ fn cast_ray(
         hi = hi.max(range.end);
         for k in range {
             let z = depths.z[k];
-            let q = [o[0] + z * d[0] - p.c[0], o[1] + z * d[1] - p.c[1], o[2] + z * d[2] - p.c[2]];
+            let q = [
+                o[0] + z * d[0] - p.c[0],
+                o[1] + z * d[1] - p.c[1],
+                o[2] + z * d[2] - p.c[2],
+            ];
             let r = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
             let wgt = params.kernel.eval(r, p.h);
             if wgt > 0.0 {
@@ -395,5 +449,16 @@ fn cast_ray(
             acc.density[k] = 0.0;
         }
     }
-    (([color[0] as f32, color[1] as f32, color[2] as f32, (1.0 - trans) as f32], depth), samples)
+    (
+        (
+            [
+                color[0] as f32,
+                color[1] as f32,
+                color[2] as f32,
+                (1.0 - trans) as f32,
+            ],
+            depth,
+        ),
+        samples,
+    )
 }

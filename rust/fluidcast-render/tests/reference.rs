@@ -23,7 +23,13 @@ fn cloud(n: usize, seed: u32) -> Particles {
 }
 
 /// Independent oracle: world-space rays from the camera, every particle at every sample.
-fn brute_force(p: &Particles, cam: &Camera, tf: &TransferFunction, prm: &RenderParams, depths: &SampleDepths) -> Vec<[f64; 4]> {
+fn brute_force(
+    p: &Particles,
+    cam: &Camera,
+    tf: &TransferFunction,
+    prm: &RenderParams,
+    depths: &SampleDepths,
+) -> Vec<[f64; 4]> {
     let f = cam.frame(prm.width, prm.height).unwrap();
     let mut out = Vec::new();
     for j in 0..prm.height {
@@ -35,7 +41,10 @@ fn brute_force(p: &Particles, cam: &Camera, tf: &TransferFunction, prm: &RenderP
                 let (mut wa, mut ws, mut wm) = (0.0, 0.0, 0.0);
                 for q in 0..p.len() {
                     let pp = p.positions[q];
-                    let r = ((x.x - pp[0] as f64).powi(2) + (x.y - pp[1] as f64).powi(2) + (x.z - pp[2] as f64).powi(2)).sqrt();
+                    let r = ((x.x - pp[0] as f64).powi(2)
+                        + (x.y - pp[1] as f64).powi(2)
+                        + (x.z - pp[2] as f64).powi(2))
+                    .sqrt();
                     let w = prm.kernel.eval(r, p.radii[q] as f64);
                     wa += p.volumes[q] as f64 * p.values[q] as f64 * w;
                     ws += p.volumes[q] as f64 * w;
@@ -80,9 +89,19 @@ fn reference_equals_brute_force() {
             FieldKind::Sph => (0.0, 0.2),
             FieldKind::Csph => (-0.5, 1.0),
         };
-        let mut tf = TransferFunction::preset("viridis").unwrap().with_range(lo, hi).unwrap();
+        let mut tf = TransferFunction::preset("viridis")
+            .unwrap()
+            .with_range(lo, hi)
+            .unwrap();
         tf.unit_distance = 0.3;
-        let prm = RenderParams { width: 24, height: 18, kernel, field, min_transmittance: 0.0, ..Default::default() };
+        let prm = RenderParams {
+            width: 24,
+            height: 18,
+            kernel,
+            field,
+            min_transmittance: 0.0,
+            ..Default::default()
+        };
         let (img, stats) = render_reference(&p, &cam, &tf, &prm).unwrap();
         let f = cam.frame(prm.width, prm.height).unwrap();
         let depths = SampleDepths::new(&f, stats.near, stats.far, 1.0).unwrap();
@@ -108,7 +127,8 @@ fn uniform_slab_transmittance_is_exponential() {
     for i in -6..=6 {
         for j in -6..=6 {
             for k in 0..nz {
-                p.positions.push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
+                p.positions
+                    .push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
                 p.radii.push(h);
                 p.volumes.push(spacing.powi(3));
                 p.masses.push(1.0);
@@ -126,16 +146,28 @@ fn uniform_slab_transmittance_is_exponential() {
         ..Default::default()
     };
     let alpha = 0.4; // opacity per unit distance
-    let mut tf = TransferFunction::preset("grayscale").unwrap().with_range(0.0, 1.0).unwrap();
+    let mut tf = TransferFunction::preset("grayscale")
+        .unwrap()
+        .with_range(0.0, 1.0)
+        .unwrap();
     tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
     tf.unit_distance = 0.25;
     let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
-    let prm = RenderParams { width: 2, height: 2, sampling_scale: 10.0, min_transmittance: 0.0, ..Default::default() };
+    let prm = RenderParams {
+        width: 2,
+        height: 2,
+        sampling_scale: 10.0,
+        min_transmittance: 0.0,
+        ..Default::default()
+    };
     let (img, stats) = render_reference(&p, &cam, &tf, &prm).unwrap();
     assert!(stats.depth_samples > 1000);
     let t = 1.0 - img.rgba[0][3] as f64;
     let expected = (-sigma * thickness).exp();
-    assert!((t - expected).abs() < 1e-3, "T = {t}, exp(-σd) = {expected}");
+    assert!(
+        (t - expected).abs() < 1e-3,
+        "T = {t}, exp(-σd) = {expected}"
+    );
     // Emission: constant colour c with opacity: premultiplied colour = c·(1 − T).
     let c = tf.eval(0.7).0[0];
     assert!((img.rgba[0][0] as f64 - c * (1.0 - t)).abs() < 1e-5);
@@ -146,10 +178,21 @@ fn sample_index_ranges_are_exact() {
     let cam = Camera::default();
     let f = cam.frame(100, 80).unwrap();
     let d = SampleDepths::new(&f, 0.5, 3.0, 1.0).unwrap();
-    for (z0, z1) in [(0.4, 0.6), (1.0, 1.0001), (2.5, 3.5), (0.51, 0.52), (d.z[10], d.z[20])] {
+    for (z0, z1) in [
+        (0.4, 0.6),
+        (1.0, 1.0001),
+        (2.5, 3.5),
+        (0.51, 0.52),
+        (d.z[10], d.z[20]),
+    ] {
         let r = d.indices_within(z0, z1);
         for k in 0..d.len() {
-            assert_eq!(r.contains(&k), d.z[k] >= z0 && d.z[k] <= z1, "k={k} z={} in [{z0},{z1}]", d.z[k]);
+            assert_eq!(
+                r.contains(&k),
+                d.z[k] >= z0 && d.z[k] <= z1,
+                "k={k} z={} in [{z0},{z1}]",
+                d.z[k]
+            );
         }
     }
 }

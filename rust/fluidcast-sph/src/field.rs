@@ -22,7 +22,9 @@ impl std::str::FromStr for FieldKind {
             "csph" | "shepard" => Ok(FieldKind::Csph),
             "sph" => Ok(FieldKind::Sph),
             "density" => Ok(FieldKind::Density),
-            _ => Err(format!("unknown field '{s}' (expected csph, sph or density)")),
+            _ => Err(format!(
+                "unknown field '{s}' (expected csph, sph or density)"
+            )),
         }
     }
 }
@@ -81,7 +83,10 @@ impl Particles {
     /// Evaluates the field at many points in parallel.
     pub fn sample_many(&self, kernel: Kernel, points: &[[f64; 3]]) -> Vec<FieldSample> {
         let grid = self.neighbour_grid();
-        points.par_iter().map(|&x| self.sample(&grid, kernel, x)).collect()
+        points
+            .par_iter()
+            .map(|&x| self.sample(&grid, kernel, x))
+            .collect()
     }
 }
 
@@ -102,7 +107,11 @@ mod tests {
         for i in 0..n {
             for j in 0..n {
                 for k in 0..n {
-                    let x = [i as f32 * 0.1 + 0.03 * rnd(), j as f32 * 0.1 + 0.03 * rnd(), k as f32 * 0.1 + 0.03 * rnd()];
+                    let x = [
+                        i as f32 * 0.1 + 0.03 * rnd(),
+                        j as f32 * 0.1 + 0.03 * rnd(),
+                        k as f32 * 0.1 + 0.03 * rnd(),
+                    ];
                     p.positions.push(x);
                     p.radii.push(0.2 + 0.05 * rnd());
                     p.volumes.push(0.001 * (1.0 + rnd()));
@@ -117,7 +126,15 @@ mod tests {
     #[test]
     fn csph_reproduces_a_constant_exactly() {
         let p = jittered(8, |_| 3.25);
-        let pts: Vec<[f64; 3]> = (0..500).map(|i| [0.1 + (i % 10) as f64 * 0.06, 0.1 + (i / 10 % 10) as f64 * 0.06, 0.05 * (i / 100) as f64]).collect();
+        let pts: Vec<[f64; 3]> = (0..500)
+            .map(|i| {
+                [
+                    0.1 + (i % 10) as f64 * 0.06,
+                    0.1 + (i / 10 % 10) as f64 * 0.06,
+                    0.05 * (i / 100) as f64,
+                ]
+            })
+            .collect();
         for k in Kernel::ALL {
             for s in p.sample_many(k, &pts) {
                 let v = s.value(FieldKind::Csph).unwrap();
@@ -136,10 +153,19 @@ mod tests {
             let mut w = 0.0;
             for j in 0..p.len() {
                 let q = p.positions[j];
-                let r = ((q[0] as f64 - x[0]).powi(2) + (q[1] as f64 - x[1]).powi(2) + (q[2] as f64 - x[2]).powi(2)).sqrt();
-                w += p.volumes[j] as f64 * p.values[j] as f64 * Kernel::WendlandC2.eval(r, p.radii[j] as f64);
+                let r = ((q[0] as f64 - x[0]).powi(2)
+                    + (q[1] as f64 - x[1]).powi(2)
+                    + (q[2] as f64 - x[2]).powi(2))
+                .sqrt();
+                w += p.volumes[j] as f64
+                    * p.values[j] as f64
+                    * Kernel::WendlandC2.eval(r, p.radii[j] as f64);
             }
-            assert!((s.weighted - w).abs() <= 1e-12 + 1e-9 * w.abs(), "{} vs {w}", s.weighted);
+            assert!(
+                (s.weighted - w).abs() <= 1e-12 + 1e-9 * w.abs(),
+                "{} vs {w}",
+                s.weighted
+            );
         }
     }
 }

@@ -32,7 +32,8 @@ impl NeighbourGrid {
         let mut cell = cell_size.max(f32::MIN_POSITIVE);
         let budget = (positions.len() * 8 + 64) as f64;
         let dims = loop {
-            let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
+            let d =
+                [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
             if (d[0] as f64) * (d[1] as f64) * (d[2] as f64) <= budget {
                 break d;
             }
@@ -57,7 +58,14 @@ impl NeighbourGrid {
             indices[fill[c] as usize] = i as u32;
             fill[c] += 1;
         }
-        NeighbourGrid { origin: lo, cell, dims, starts: counts, indices, positions: positions.to_vec() }
+        NeighbourGrid {
+            origin: lo,
+            cell,
+            dims,
+            starts: counts,
+            indices,
+            positions: positions.to_vec(),
+        }
     }
 
     /// Calls `f(index, squared distance)` for every particle within `radius` of `x`.

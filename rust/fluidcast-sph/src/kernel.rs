@@ -99,7 +99,8 @@ impl Kernel {
                 // σ = H/3; normalisation of exp(-r²/2σ²) over the ball of radius 3σ:
                 // (2π)^{3/2} σ³ [erf(3/√2) − √(2/π)·3·e^{−9/2}].
                 let c = (2.0 * PI).powf(1.5)
-                    * (libm::erf(3.0 / std::f64::consts::SQRT_2) - (2.0 / PI).sqrt() * 3.0 * (-4.5f64).exp());
+                    * (libm::erf(3.0 / std::f64::consts::SQRT_2)
+                        - (2.0 / PI).sqrt() * 3.0 * (-4.5f64).exp());
                 let sigma = h / 3.0;
                 (-(r * r) / (2.0 * sigma * sigma)).exp() / (c * sigma * sigma * sigma)
             }

@@ -12,4 +12,7 @@ mod particles;
 pub use field::{FieldKind, FieldSample};
 pub use grid::NeighbourGrid;
 pub use kernel::Kernel;
-pub use particles::{suggest_support_radius, Component, ParticleError, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource};
+pub use particles::{
+    suggest_support_radius, Component, ParticleError, ParticleSpec, Particles, Quantity,
+    RadiusSource, VolumeSource,
+};

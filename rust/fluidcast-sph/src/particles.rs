@@ -31,16 +31,25 @@ impl std::str::FromStr for Quantity {
         if let Some((name, sel)) = s.rsplit_once(':') {
             let sel_l = sel.to_ascii_lowercase();
             if sel_l == "mag" || sel_l == "magnitude" {
-                return Ok(Quantity { array: name.into(), component: Component::Magnitude });
+                return Ok(Quantity {
+                    array: name.into(),
+                    component: Component::Magnitude,
+                });
             }
             if let Ok(k) = sel.parse::<usize>() {
-                return Ok(Quantity { array: name.into(), component: Component::Index(k) });
+                return Ok(Quantity {
+                    array: name.into(),
+                    component: Component::Index(k),
+                });
             }
         }
         if s.is_empty() {
             return Err("empty array name".into());
         }
-        Ok(Quantity { array: s.into(), component: Component::Auto })
+        Ok(Quantity {
+            array: s.into(),
+            component: Component::Auto,
+        })
     }
 }
 
@@ -93,7 +102,12 @@ pub struct ParticleSpec {
 
 impl Default for ParticleSpec {
     fn default() -> Self {
-        ParticleSpec { quantity: None, radius: RadiusSource::Auto, volume: VolumeSource::Auto, mass: None }
+        ParticleSpec {
+            quantity: None,
+            radius: RadiusSource::Auto,
+            volume: VolumeSource::Auto,
+            mass: None,
+        }
     }
 }
 
@@ -101,17 +115,34 @@ impl Default for ParticleSpec {
 #[derive(Debug, thiserror::Error)]
 pub enum ParticleError {
     #[error("{file}: no point array '{name}' (available: {available})")]
-    MissingArray { file: PathBuf, name: String, available: String },
+    MissingArray {
+        file: PathBuf,
+        name: String,
+        available: String,
+    },
     #[error("{file}: array '{name}' has {ncomp} components, component {index} does not exist")]
-    BadComponent { file: PathBuf, name: String, ncomp: usize, index: usize },
+    BadComponent {
+        file: PathBuf,
+        name: String,
+        ncomp: usize,
+        index: usize,
+    },
     #[error("{file}: the data set has no points")]
     NoPoints { file: PathBuf },
     #[error("{file}: all {count} points have NaN or infinite coordinates")]
     NoFinitePoints { file: PathBuf, count: usize },
     #[error("{file}: support radius of particle {index} is {value} (must be finite and > 0)")]
-    BadRadius { file: PathBuf, index: usize, value: f64 },
+    BadRadius {
+        file: PathBuf,
+        index: usize,
+        value: f64,
+    },
     #[error("{file}: volume of particle {index} is {value} (must be finite and > 0)")]
-    BadVolume { file: PathBuf, index: usize, value: f64 },
+    BadVolume {
+        file: PathBuf,
+        index: usize,
+        value: f64,
+    },
     #[error("{file}: {message}")]
     Other { file: PathBuf, message: String },
 }
@@ -140,7 +171,13 @@ fn available(ds: &Dataset) -> String {
     let v: Vec<String> = ds
         .point_data
         .iter()
-        .map(|a| if a.num_components > 1 { format!("{} ({} comp.)", a.name, a.num_components) } else { a.name.clone() })
+        .map(|a| {
+            if a.num_components > 1 {
+                format!("{} ({} comp.)", a.name, a.num_components)
+            } else {
+                a.name.clone()
+            }
+        })
         .collect();
     if v.is_empty() {
         "none".into()
@@ -150,15 +187,18 @@ fn available(ds: &Dataset) -> String {
 }
 
 fn array<'a>(ds: &'a Dataset, name: &str) -> Result<&'a DataArray, ParticleError> {
-    ds.point_array(name).ok_or_else(|| ParticleError::MissingArray {
-        file: ds.path.clone(),
-        name: name.into(),
-        available: available(ds),
-    })
+    ds.point_array(name)
+        .ok_or_else(|| ParticleError::MissingArray {
+            file: ds.path.clone(),
+            name: name.into(),
+            available: available(ds),
+        })
 }
 
 fn first_of<'a>(ds: &'a Dataset, names: &[&str]) -> Option<&'a DataArray> {
-    names.iter().find_map(|n| ds.point_array(n).filter(|a| a.num_components == 1))
+    names
+        .iter()
+        .find_map(|n| ds.point_array(n).filter(|a| a.num_components == 1))
 }
 
 /// Extracts the selected component of `q` as one value per point.
@@ -171,7 +211,12 @@ pub fn quantity_values(ds: &Dataset, q: &Quantity) -> Result<Vec<f64>, ParticleE
         Component::Auto | Component::Magnitude => a.values.chunks_exact(nc).map(mag).collect(),
         Component::Index(k) if k < nc => a.values.chunks_exact(nc).map(|t| t[k]).collect(),
         Component::Index(k) => {
-            return Err(ParticleError::BadComponent { file: ds.path.clone(), name: q.array.clone(), ncomp: nc, index: k })
+            return Err(ParticleError::BadComponent {
+                file: ds.path.clone(),
+                name: q.array.clone(),
+                ncomp: nc,
+                index: k,
+            })
         }
     })
 }
@@ -248,7 +293,9 @@ impl Particles {
         if n == 0 {
             return Err(ParticleError::NoPoints { file });
         }
-        let keep: Vec<usize> = (0..n).filter(|&i| ds.points[i].iter().all(|v| v.is_finite())).collect();
+        let keep: Vec<usize> = (0..n)
+            .filter(|&i| ds.points[i].iter().all(|v| v.is_finite()))
+            .collect();
         if keep.is_empty() {
             return Err(ParticleError::NoFinitePoints { file, count: n });
         }
@@ -262,14 +309,19 @@ impl Particles {
             RadiusSource::Array { name, scale } => {
                 let a = array(ds, name)?;
                 if a.num_components != 1 {
-                    return Err(ParticleError::Other { file, message: format!("radius array '{name}' must have 1 component") });
+                    return Err(ParticleError::Other {
+                        file,
+                        message: format!("radius array '{name}' must have 1 component"),
+                    });
                 }
                 a.values.iter().map(|v| v * scale).collect()
             }
             RadiusSource::Constant(h) => vec![*h; n],
             RadiusSource::Auto => match ds.field_scalar("support_radius") {
                 Some(h) => {
-                    notes.push(format!("support radius {h} from the file's field data 'support_radius'"));
+                    notes.push(format!(
+                        "support radius {h} from the file's field data 'support_radius'"
+                    ));
                     vec![h; n]
                 }
                 None => {
@@ -284,9 +336,13 @@ impl Particles {
                 }
             },
         };
-        let mass_density = |m: &DataArray, d: &DataArray| -> Vec<f64> { m.values.iter().zip(&d.values).map(|(m, r)| m / r).collect() };
+        let mass_density = |m: &DataArray, d: &DataArray| -> Vec<f64> {
+            m.values.iter().zip(&d.values).map(|(m, r)| m / r).collect()
+        };
         let volumes: Vec<f64> = match &spec.volume {
-            VolumeSource::MassDensity { mass, density } => mass_density(array(ds, mass)?, array(ds, density)?),
+            VolumeSource::MassDensity { mass, density } => {
+                mass_density(array(ds, mass)?, array(ds, density)?)
+            }
             VolumeSource::Array(name) => array(ds, name)?.values.clone(),
             VolumeSource::Uniform => {
                 let s = spacing().unwrap_or(1.0);
@@ -306,7 +362,9 @@ impl Particles {
                     }
                     _ => {
                         let s = spacing().unwrap_or(1.0);
-                        notes.push("uniform particle volume (no mass/density or volume arrays)".into());
+                        notes.push(
+                            "uniform particle volume (no mass/density or volume arrays)".into(),
+                        );
                         vec![s * s * s; n]
                     }
                 }
@@ -314,21 +372,36 @@ impl Particles {
         };
         let masses: Vec<f64> = match spec.mass.as_deref() {
             Some(name) => array(ds, name)?.values.clone(),
-            None => match (first_of(ds, &["mass", "m"]), first_of(ds, &["density", "rho"])) {
+            None => match (
+                first_of(ds, &["mass", "m"]),
+                first_of(ds, &["density", "rho"]),
+            ) {
                 (Some(m), _) => m.values.clone(),
                 (None, Some(d)) => volumes.iter().zip(&d.values).map(|(v, r)| v * r).collect(),
                 _ => volumes.clone(),
             },
         };
-        let mut p = Particles { notes, skipped_nonfinite: n - keep.len(), ..Default::default() };
+        let mut p = Particles {
+            notes,
+            skipped_nonfinite: n - keep.len(),
+            ..Default::default()
+        };
         for &i in &keep {
             let h = radii[i];
             if !(h.is_finite() && h > 0.0) {
-                return Err(ParticleError::BadRadius { file, index: i, value: h });
+                return Err(ParticleError::BadRadius {
+                    file,
+                    index: i,
+                    value: h,
+                });
             }
             let v = volumes[i];
             if !(v.is_finite() && v > 0.0) {
-                return Err(ParticleError::BadVolume { file, index: i, value: v });
+                return Err(ParticleError::BadVolume {
+                    file,
+                    index: i,
+                    value: v,
+                });
             }
             let x = ds.points[i];
             p.positions.push([x[0] as f32, x[1] as f32, x[2] as f32]);

@@ -92,7 +92,11 @@ impl Camera {
         let vn = vn.normalize();
         let mut up = DVec3::from(self.view_up);
         if up.cross(vn).length_squared() < 1e-12 {
-            up = if vn.y.abs() < 0.9 { DVec3::Y } else { -DVec3::Z };
+            up = if vn.y.abs() < 0.9 {
+                DVec3::Y
+            } else {
+                -DVec3::Z
+            };
         }
         let angle = self.view_angle.to_radians();
         let distance = radius / (angle * 0.5).sin();
@@ -141,8 +145,15 @@ impl Camera {
 
     /// The orthonormal view frame for a `width × height` image.
     pub fn frame(&self, width: u32, height: u32) -> Result<ViewFrame, CameraError> {
-        let all = self.position.iter().chain(&self.focal_point).chain(&self.view_up);
-        if !all.clone().all(|v| v.is_finite()) || !self.view_angle.is_finite() || !self.parallel_scale.is_finite() {
+        let all = self
+            .position
+            .iter()
+            .chain(&self.focal_point)
+            .chain(&self.view_up);
+        if !all.clone().all(|v| v.is_finite())
+            || !self.view_angle.is_finite()
+            || !self.parallel_scale.is_finite()
+        {
             return Err(CameraError::NonFinite);
         }
         let eye = DVec3::from(self.position);
@@ -203,7 +214,10 @@ pub struct ViewFrame {
 impl ViewFrame {
     /// Normalised device coordinates of a pixel centre, x right, y up, in [-1, 1].
     pub fn ndc(&self, i: f64, j: f64) -> (f64, f64) {
-        (2.0 * (i + 0.5) / self.width as f64 - 1.0, 1.0 - 2.0 * (j + 0.5) / self.height as f64)
+        (
+            2.0 * (i + 0.5) / self.width as f64 - 1.0,
+            1.0 - 2.0 * (j + 0.5) / self.height as f64,
+        )
     }
 
     /// The ray through pixel centre (i, j): origin and direction with `dir · forward = 1`, so
@@ -211,8 +225,16 @@ impl ViewFrame {
     pub fn ray(&self, i: u32, j: u32) -> (DVec3, DVec3) {
         let (x, y) = self.ndc(i as f64, j as f64);
         match self.parallel {
-            Some(s) => (self.eye + self.right * (x * s * self.aspect) + self.up * (y * s), self.forward),
-            None => (self.eye, self.forward + self.right * (x * self.tan_half * self.aspect) + self.up * (y * self.tan_half)),
+            Some(s) => (
+                self.eye + self.right * (x * s * self.aspect) + self.up * (y * s),
+                self.forward,
+            ),
+            None => (
+                self.eye,
+                self.forward
+                    + self.right * (x * self.tan_half * self.aspect)
+                    + self.up * (y * self.tan_half),
+            ),
         }
     }
 
@@ -232,10 +254,16 @@ impl ViewFrame {
                 if v.z <= 0.0 {
                     return None;
                 }
-                (v.x / (v.z * self.tan_half * self.aspect), v.y / (v.z * self.tan_half))
+                (
+                    v.x / (v.z * self.tan_half * self.aspect),
+                    v.y / (v.z * self.tan_half),
+                )
             }
         };
-        Some(((x + 1.0) * 0.5 * self.width as f64, (1.0 - y) * 0.5 * self.height as f64))
+        Some((
+            (x + 1.0) * 0.5 * self.width as f64,
+            (1.0 - y) * 0.5 * self.height as f64,
+        ))
     }
 
     /// World size of one pixel at view depth z (the lateral pixel footprint).
@@ -272,7 +300,10 @@ mod tests {
             let f = c.frame(64, 48).unwrap();
             let (o, d) = f.ray(10, 40);
             let (x, y) = f.project(o + d * 3.7).unwrap();
-            assert!((x - 10.5).abs() < 1e-9 && (y - 40.5).abs() < 1e-9, "{x} {y}");
+            assert!(
+                (x - 10.5).abs() < 1e-9 && (y - 40.5).abs() < 1e-9,
+                "{x} {y}"
+            );
         }
     }
 

@@ -40,7 +40,9 @@ pub enum TransferFunctionError {
 const BUILTIN: [&str; 4] = ["Cool to Warm", "Viridis", "Inferno", "Grayscale"];
 
 fn table(flat: &[f64]) -> Vec<(f64, [f64; 3])> {
-    flat.chunks_exact(4).map(|c| (c[0], [c[1], c[2], c[3]])).collect()
+    flat.chunks_exact(4)
+        .map(|c| (c[0], [c[1], c[2], c[3]]))
+        .collect()
 }
 
 fn normalise<T: Copy>(pts: &mut [(f64, T)]) {
@@ -72,14 +74,24 @@ impl TransferFunction {
         let key = name.to_ascii_lowercase().replace(['-', '_'], " ");
         let colors = match key.as_str() {
             "cool to warm" | "coolwarm" => table(&[
-                0.0, 0.231373, 0.298039, 0.752941, 0.5, 0.865003, 0.865003, 0.865003, 1.0, 0.705882, 0.0156863, 0.14902,
+                0.0, 0.231373, 0.298039, 0.752941, 0.5, 0.865003, 0.865003, 0.865003, 1.0,
+                0.705882, 0.0156863, 0.14902,
             ]),
             "viridis" => table(&VIRIDIS),
             "inferno" => table(&INFERNO),
             "grayscale" | "greyscale" | "gray" => table(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]),
-            _ => return Err(TransferFunctionError::UnknownPreset(name.into(), BUILTIN.join(", "))),
+            _ => {
+                return Err(TransferFunctionError::UnknownPreset(
+                    name.into(),
+                    BUILTIN.join(", "),
+                ))
+            }
         };
-        let canonical = BUILTIN.iter().find(|b| b.to_ascii_lowercase() == key).copied().unwrap_or(name);
+        let canonical = BUILTIN
+            .iter()
+            .find(|b| b.to_ascii_lowercase() == key)
+            .copied()
+            .unwrap_or(name);
         Ok(TransferFunction {
             name: canonical.into(),
             colors,
@@ -96,8 +108,14 @@ impl TransferFunction {
 
     /// Parses ParaView colour-map preset JSON (a list of presets — the first with
     /// `RGBPoints` is used — or one preset object). `file` names the source in errors.
-    pub fn from_paraview_json(text: &str, file: &str) -> Result<TransferFunction, TransferFunctionError> {
-        let err = |p: String| TransferFunctionError::File { file: file.into(), problem: p };
+    pub fn from_paraview_json(
+        text: &str,
+        file: &str,
+    ) -> Result<TransferFunction, TransferFunctionError> {
+        let err = |p: String| TransferFunctionError::File {
+            file: file.into(),
+            problem: p,
+        };
         let v: Value = serde_json::from_str(text).map_err(|e| err(format!("invalid JSON: {e}")))?;
         let obj = match &v {
             Value::Array(a) => a.iter().find(|p| p.get("RGBPoints").is_some()).cloned(),
@@ -110,7 +128,10 @@ impl TransferFunction {
                 None => Ok(None),
                 Some(Value::Array(a)) => a
                     .iter()
-                    .map(|x| x.as_f64().ok_or_else(|| err(format!("'{key}' holds a non-number"))))
+                    .map(|x| {
+                        x.as_f64()
+                            .ok_or_else(|| err(format!("'{key}' holds a non-number")))
+                    })
                     .collect::<Result<Vec<_>, _>>()
                     .map(Some),
                 Some(_) => Err(err(format!("'{key}' is not an array"))),
@@ -118,7 +139,10 @@ impl TransferFunction {
         };
         let rgb = nums("RGBPoints")?.ok_or_else(|| err("no 'RGBPoints'".into()))?;
         if rgb.len() < 4 || rgb.len() % 4 != 0 {
-            return Err(err(format!("'RGBPoints' needs groups of 4 numbers (x, r, g, b), found {}", rgb.len())));
+            return Err(err(format!(
+                "'RGBPoints' needs groups of 4 numbers (x, r, g, b), found {}",
+                rgb.len()
+            )));
         }
         let mut colors = table(&rgb);
         normalise(&mut colors);
@@ -129,8 +153,18 @@ impl TransferFunction {
             None => vec![(0.0, 0.0), (1.0, 1.0)],
         };
         normalise(&mut opacity);
-        let name = obj.get("Name").and_then(Value::as_str).unwrap_or(file).to_string();
-        Ok(TransferFunction { name, colors, opacity, range: (0.0, 1.0), unit_distance: 1.0 })
+        let name = obj
+            .get("Name")
+            .and_then(Value::as_str)
+            .unwrap_or(file)
+            .to_string();
+        Ok(TransferFunction {
+            name,
+            colors,
+            opacity,
+            range: (0.0, 1.0),
+            unit_distance: 1.0,
+        })
     }
 
     /// Sets the data range mapped onto the colour map.
@@ -163,7 +197,9 @@ impl TransferFunction {
         match self.normalised(q) {
             None => ([0.0; 3], 0.0),
             Some(t) => (
-                lerp_at(&self.colors, t, |a, b, f| [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)),
+                lerp_at(&self.colors, t, |a, b, f| {
+                    [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)
+                }),
                 lerp_at(&self.opacity, t, |a, b, f| a + (b - a) * f),
             ),
         }
@@ -186,12 +222,18 @@ mod tests {
     #[test]
     fn presets_and_interpolation() {
         for n in TransferFunction::builtin_names() {
-            let tf = TransferFunction::preset(n).unwrap().with_range(10.0, 20.0).unwrap();
+            let tf = TransferFunction::preset(n)
+                .unwrap()
+                .with_range(10.0, 20.0)
+                .unwrap();
             assert_eq!(tf.eval(5.0).1, 0.0);
             assert_eq!(tf.eval(25.0).1, 1.0);
             assert!((tf.eval(15.0).1 - 0.5).abs() < 1e-12);
         }
-        let g = TransferFunction::preset("grayscale").unwrap().with_range(0.0, 2.0).unwrap();
+        let g = TransferFunction::preset("grayscale")
+            .unwrap()
+            .with_range(0.0, 2.0)
+            .unwrap();
         assert!((g.eval(0.5).0[1] - 0.25).abs() < 1e-12);
         assert!(TransferFunction::preset("nope").is_err());
     }
@@ -200,7 +242,10 @@ mod tests {
     fn paraview_json() {
         let j = r#"[{"Name":"Mine","ColorSpace":"RGB","RGBPoints":[-1,0,0,0, 1,1,0.5,0],
                     "Points":[-1,0,0.5,0, 1,0.8,0.5,0]}]"#;
-        let tf = TransferFunction::from_paraview_json(j, "mine.json").unwrap().with_range(0.0, 4.0).unwrap();
+        let tf = TransferFunction::from_paraview_json(j, "mine.json")
+            .unwrap()
+            .with_range(0.0, 4.0)
+            .unwrap();
         let (c, a) = tf.eval(2.0);
         assert!((c[1] - 0.25).abs() < 1e-12 && (a - 0.4).abs() < 1e-12);
         assert!(TransferFunction::from_paraview_json("{\"RGBPoints\":[1,2]}", "x.json").is_err());
