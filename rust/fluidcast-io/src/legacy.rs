@@ -10,14 +10,8 @@ use std::path::Path;
 
 use vtkio::model::{Attribute, DataSet, FieldArray, IOBuffer, Piece};
 
+use crate::xml::find;
 use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
-
-fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
-    hay.get(from..)?
-        .windows(needle.len())
-        .position(|w| w == needle)
-        .map(|p| p + from)
-}
 
 fn line_end(b: &[u8], from: usize) -> usize {
     find(b, b"\n", from).map(|p| p + 1).unwrap_or(b.len())
