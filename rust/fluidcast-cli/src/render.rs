@@ -367,19 +367,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         match &progress {
             Some(pb) => pb.inc(1),
             None => {
+                // `total` already covers the renderer's own stages (bin, raycast).
                 let total: f64 = stats
                     .stages
                     .iter()
-                    .filter(|(k, _)| *k != "total")
                     .filter(|(k, _)| !matches!(*k, "bin" | "raycast"))
                     .map(|(_, v)| v)
-                    .sum::<f64>()
-                    + stats
-                        .stages
-                        .iter()
-                        .find(|(k, _)| *k == "total")
-                        .map(|s| s.1)
-                        .unwrap_or(0.0);
+                    .sum();
                 eprintln!(
                     "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms",
                     out.display(),

@@ -17,18 +17,11 @@ impl NeighbourGrid {
     /// Builds the grid with the given cell size (world units, > 0). The cell size is grown
     /// if the grid would need far more cells than there are particles.
     pub fn new(positions: &[[f32; 3]], cell_size: f32) -> NeighbourGrid {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for p in positions {
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
-        if positions.is_empty() {
-            lo = [0.0; 3];
-            hi = [0.0; 3];
-        }
+        let (lo, hi) = if positions.is_empty() {
+            ([0.0; 3], [0.0; 3])
+        } else {
+            bounds(positions)
+        };
         let mut cell = cell_size.max(f32::MIN_POSITIVE);
         let budget = (positions.len() * 8 + 64) as f64;
         let dims = loop {
@@ -99,4 +92,17 @@ impl NeighbourGrid {
             }
         }
     }
+}
+
+/// Axis-aligned bounds of `p` (±∞ when empty).
+pub(crate) fn bounds(p: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for q in p {
+        for k in 0..3 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+    }
+    (lo, hi)
 }

@@ -2,6 +2,7 @@ use std::path::PathBuf;
 
 use fluidcast_io::{DataArray, Dataset};
 
+use crate::grid::bounds;
 use crate::NeighbourGrid;
 
 /// Which part of a (possibly vector) point array is the rendered quantity.
@@ -270,18 +271,6 @@ pub fn mean_spacing(points: &[[f64; 3]]) -> Option<f64> {
 /// h = 1.3·dx gives H = 2.6·dx), so that a sample sees ~30 neighbours.
 pub fn suggest_support_radius(points: &[[f64; 3]]) -> Option<f64> {
     mean_spacing(points).map(|s| 2.0 * s)
-}
-
-fn bounds(p: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    let mut lo = [f32::INFINITY; 3];
-    let mut hi = [f32::NEG_INFINITY; 3];
-    for q in p {
-        for k in 0..3 {
-            lo[k] = lo[k].min(q[k]);
-            hi[k] = hi[k].max(q[k]);
-        }
-    }
-    (lo, hi)
 }
 
 impl Particles {
