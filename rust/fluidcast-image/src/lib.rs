@@ -36,6 +36,9 @@ pub struct Image {
     pub height: u32,
     pub rgba: Vec<[f32; 4]>,
     pub depth: Vec<f32>,
+    /// Extra per-pixel channels (arbitrary output values: diagnostics such as a predicted
+    /// error bound), written as further EXR channels under their names.
+    pub aovs: Vec<(String, Vec<f32>)>,
 }
 
 impl Image {
@@ -47,6 +50,7 @@ impl Image {
             height,
             rgba: vec![[0.0; 4]; n],
             depth: vec![f32::INFINITY; n],
+            aovs: Vec::new(),
         }
     }
 
@@ -64,16 +68,21 @@ impl Image {
         }
     }
 
-    /// EXR with channels R, G, B, A (premultiplied, linear) and Z (depth), 32-bit float.
+    /// EXR with channels R, G, B, A (premultiplied, linear), Z (depth) and the AOVs, 32-bit
+    /// float.
     pub fn write_exr(&self, path: &Path) -> Result<(), ImageError> {
         let ch = |k: usize| FlatSamples::F32(self.rgba.iter().map(|p| p[k]).collect());
-        let channels = AnyChannels::sort(SmallVec::from_vec(vec![
+        let mut list = vec![
             AnyChannel::new("R", ch(0)),
             AnyChannel::new("G", ch(1)),
             AnyChannel::new("B", ch(2)),
             AnyChannel::new("A", ch(3)),
             AnyChannel::new("Z", FlatSamples::F32(self.depth.clone())),
-        ]));
+        ];
+        for (name, v) in &self.aovs {
+            list.push(AnyChannel::new(name.as_str(), FlatSamples::F32(v.clone())));
+        }
+        let channels = AnyChannels::sort(SmallVec::from_vec(list));
         let layer = Layer::new(
             (self.width as usize, self.height as usize),
             LayerAttributes::named("fluidcast"),
@@ -133,7 +142,7 @@ impl Image {
                             }
                         }
                         "Z" => out.depth = vals,
-                        _ => {}
+                        _ => out.aovs.push((name, vals)),
                     }
                 }
                 Ok(out)

@@ -80,6 +80,30 @@ impl Particles {
         s
     }
 
+    /// Flags surface particles by a neighbourhood deficiency: particle j is a surface
+    /// particle when fewer than `threshold` × the median count of particles lie within
+    /// H_j/2 of it (itself included). Interior particles see a full ball of neighbours; at a
+    /// free surface (or where the data ends, e.g. at walls without boundary particles) about
+    /// half of it is empty, so 0.75 flags a layer about one particle spacing thick.
+    pub fn surface_flags(&self, threshold: f64) -> Vec<bool> {
+        let grid = NeighbourGrid::new(&self.positions, 0.5 * self.max_radius());
+        let counts: Vec<u32> = (0..self.len())
+            .into_par_iter()
+            .map(|j| {
+                let mut n = 0u32;
+                grid.for_each_near(self.positions[j], 0.5 * self.radii[j], |_, _| n += 1);
+                n
+            })
+            .collect();
+        let mut sorted = counts.clone();
+        sorted.sort_unstable();
+        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0) as f64;
+        counts
+            .iter()
+            .map(|&c| (c as f64) < threshold * median)
+            .collect()
+    }
+
     /// Evaluates the field at many points in parallel.
     pub fn sample_many(&self, kernel: Kernel, points: &[[f64; 3]]) -> Vec<FieldSample> {
         let grid = self.neighbour_grid();

@@ -196,12 +196,28 @@ impl TransferFunction {
     pub fn eval(&self, q: f64) -> ([f64; 3], f64) {
         match self.normalised(q) {
             None => ([0.0; 3], 0.0),
-            Some(t) => (
-                lerp_at(&self.colors, t, |a, b, f| {
-                    [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)
-                }),
-                lerp_at(&self.opacity, t, |a, b, f| a + (b - a) * f),
-            ),
+            Some(t) => self.eval_normalised(t),
+        }
+    }
+
+    /// Colour and opacity at map position `t` (0..1, see [`TransferFunction::normalised`]).
+    pub fn eval_normalised(&self, t: f64) -> ([f64; 3], f64) {
+        (
+            lerp_at(&self.colors, t, |a, b, f| {
+                [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)
+            }),
+            lerp_at(&self.opacity, t, |a, b, f| a + (b - a) * f),
+        )
+    }
+
+    /// Extinction coefficient κ = −ln(1 − α)/unit (per world unit; +∞ for α ≥ 1), so that
+    /// a step of length `ds` has opacity `1 − exp(−κ·ds)` = [`TransferFunction::step_alpha`].
+    #[inline]
+    pub fn extinction(&self, alpha: f64) -> f64 {
+        if alpha >= 1.0 {
+            f64::INFINITY
+        } else {
+            -(1.0 - alpha).ln() / self.unit_distance
         }
     }
 

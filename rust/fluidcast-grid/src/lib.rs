@@ -1,0 +1,559 @@
+//! The sparse perspective view-aligned grid of Hochstetter et al. 2016 (Sec. 3, 6.1): the
+//! particle access structure that both the grid renderer and its error analysis walk.
+//!
+//! Conventions: view space has the eye at the origin, +z along the camera's forward axis
+//! (depths are positive), +x to the right and +y up (see [`fluidcast_view::ViewFrame`]).
+//! The image is split into *ray bundles* of `D_xy × D_xy` pixels (bundle (0, 0) is the
+//! top-left one); each bundle's frustum is cut along view depth into *cells* of `D_z`
+//! consecutive depth samples of [`SampleDepths`] (logarithmically spaced, Eq. 8), which
+//! makes cell `z` cover samples `z·D_z .. (z+1)·D_z`. A particle is referenced by every cell
+//! whose bundle its screen-space support bound touches and whose depth samples its support
+//! spans; only cells with at least one reference exist (implicit frustum culling).
+//!
+//! References are sorted by (bundle, cell depth, merge bit), where the merge bit (Sec. 6.2)
+//! says the particle is referenced by the next cell in depth as well; a cell's references
+//! with the bit clear come first, so the references of merged cells are contiguous runs.
+
+mod depths;
+
+use fluidcast_sph::Particles;
+use fluidcast_view::ViewFrame;
+use glam::DVec3;
+use rayon::prelude::*;
+
+pub use depths::{within, SampleDepths, MAX_SAMPLES};
+
+/// Why a grid could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum GridError {
+    #[error("sampling scale {0} must be finite and > 0")]
+    SamplingScale(f64),
+    #[error("the view needs {0} samples per ray (more than {MAX_SAMPLES}): the near plane is too close to the camera relative to the data; move the camera or lower the sampling scale")]
+    TooManySamples(usize),
+    #[error("bundle size {0} must be 1..=64 pixels")]
+    BundleSize(u32),
+    #[error("depth samples per cell {0} must be a power of two in 1..=64")]
+    DepthSamples(u32),
+}
+
+/// A particle in view space (world units), as the renderers read it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewParticle {
+    /// Centre in view space.
+    pub c: [f64; 3],
+    /// Support radius H (the kernel is zero beyond it).
+    pub h: f64,
+    /// Volume V = m/ρ.
+    pub v: f64,
+    /// The rendered quantity q.
+    pub a: f64,
+    /// Mass m (for the density field).
+    pub m: f64,
+}
+
+/// All particles in view space and the depth range their supports occupy.
+#[derive(Debug, Clone)]
+pub struct ViewParticles {
+    pub list: Vec<ViewParticle>,
+    /// `[near, far]` in view depth, or `None` when nothing lies in front of the camera.
+    pub range: Option<(f64, f64)>,
+}
+
+/// Transforms particles to view space and finds near/far: far is the largest depth of any
+/// support, near the smallest (clamped to far·10⁻⁴ for a perspective view so that the log
+/// spacing stays finite).
+pub fn view_particles(particles: &Particles, frame: &ViewFrame) -> ViewParticles {
+    let list: Vec<ViewParticle> = (0..particles.len())
+        .into_par_iter()
+        .map(|j| {
+            let p = particles.positions[j];
+            let v = frame.to_view(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            ViewParticle {
+                c: v.to_array(),
+                h: particles.radii[j] as f64,
+                v: particles.volumes[j] as f64,
+                a: particles.values[j] as f64,
+                m: particles.masses[j] as f64,
+            }
+        })
+        .collect();
+    let zmax = list
+        .iter()
+        .map(|p| p.c[2] + p.h)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let zmin = list
+        .iter()
+        .map(|p| p.c[2] - p.h)
+        .fold(f64::INFINITY, f64::min);
+    let perspective = frame.parallel.is_none();
+    let range = if list.is_empty() || (perspective && zmax <= 0.0) {
+        None
+    } else if perspective {
+        Some((zmin.max(zmax * 1e-4), zmax))
+    } else {
+        Some((zmin, zmax))
+    };
+    ViewParticles { list, range }
+}
+
+/// Pixel rectangle `[x0, x1) × [y0, y1)` (rows from the top) that contains every pixel
+/// centre whose ray can pass through the particle's support, or `None` when the support is
+/// off screen or outside `[near, far]`. Conservative: the support sphere's bounding box is
+/// projected at its nearest and farthest depth.
+pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
+    let [x, y, z] = p.c;
+    if z + p.h < near || z - p.h > far {
+        return None;
+    }
+    let (w, h) = (frame.width, frame.height);
+    let (sx, sy) = match frame.parallel {
+        Some(s) => (s * frame.aspect, s),
+        None => (frame.tan_half * frame.aspect, frame.tan_half),
+    };
+    let (x0, x1, y0, y1) = match frame.parallel {
+        None if z - p.h <= near * 0.5 => {
+            (-f64::INFINITY, f64::INFINITY, -f64::INFINITY, f64::INFINITY)
+        }
+        None => {
+            // x/z over the box [x±h]×[z±h] (z > 0) is extreme at its corners.
+            let zs = [z - p.h, z + p.h];
+            let ext = |c: f64| {
+                let v = [
+                    (c - p.h) / zs[0],
+                    (c - p.h) / zs[1],
+                    (c + p.h) / zs[0],
+                    (c + p.h) / zs[1],
+                ];
+                (
+                    v.iter().copied().fold(f64::INFINITY, f64::min),
+                    v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                )
+            };
+            let (a, b) = ext(x);
+            let (c, d) = ext(y);
+            (a, b, c, d)
+        }
+        Some(_) => (x - p.h, x + p.h, y - p.h, y + p.h),
+    };
+    // NDC → pixel columns/rows (rows from the top).
+    let px0 = ((x0 / sx + 1.0) * 0.5 * w as f64).floor().max(0.0);
+    let px1 = ((x1 / sx + 1.0) * 0.5 * w as f64).ceil().min(w as f64);
+    let py0 = ((1.0 - y1 / sy) * 0.5 * h as f64).floor().max(0.0);
+    let py1 = ((1.0 - y0 / sy) * 0.5 * h as f64).ceil().min(h as f64);
+    if px0 >= px1 || py0 >= py1 {
+        return None;
+    }
+    Some([px0 as u32, px1 as u32, py0 as u32, py1 as u32])
+}
+
+/// A viewing ray through a pixel centre, in view space: the point at view depth `z` is
+/// `o + z·d` (d has a z component of 1, so `z` is depth, not distance).
+#[derive(Debug, Clone, Copy)]
+pub struct Ray {
+    pub o: [f64; 3],
+    pub d: [f64; 3],
+    /// |d|², and |d| (world length of a unit of depth along the ray).
+    pub dd: f64,
+    pub dlen: f64,
+}
+
+impl Ray {
+    /// The ray through the centre of pixel (i, j), j = 0 the top row.
+    pub fn through_pixel(frame: &ViewFrame, i: u32, j: u32) -> Ray {
+        let (x, y) = frame.ndc(i as f64, j as f64);
+        let (o, d) = match frame.parallel {
+            Some(s) => ([x * s * frame.aspect, y * s, 0.0], [0.0, 0.0, 1.0]),
+            None => (
+                [0.0; 3],
+                [x * frame.tan_half * frame.aspect, y * frame.tan_half, 1.0],
+            ),
+        };
+        let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        Ray {
+            o,
+            d,
+            dd,
+            dlen: dd.sqrt(),
+        }
+    }
+
+    /// The view-depth interval in which the ray is inside the particle's support, if any.
+    #[inline]
+    pub fn support_interval(&self, p: &ViewParticle) -> Option<(f64, f64)> {
+        // |o + z d − c|² < h² ⇔ dd z² + 2 (d·(o−c)) z + |o−c|² − h² < 0.
+        let (o, d) = (self.o, self.d);
+        let oc = [o[0] - p.c[0], o[1] - p.c[1], o[2] - p.c[2]];
+        let b = d[0] * oc[0] + d[1] * oc[1] + d[2] * oc[2];
+        let c = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - p.h * p.h;
+        let disc = b * b - self.dd * c;
+        if disc <= 0.0 {
+            return None;
+        }
+        let sq = disc.sqrt();
+        Some(((-b - sq) / self.dd, (-b + sq) / self.dd))
+    }
+
+    /// Distance from the ray's point at depth `z` to the particle centre.
+    #[inline]
+    pub fn distance_at(&self, z: f64, p: &ViewParticle) -> f64 {
+        let q = [
+            self.o[0] + z * self.d[0] - p.c[0],
+            self.o[1] + z * self.d[1] - p.c[1],
+            self.o[2] + z * self.d[2] - p.c[2],
+        ];
+        (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+    }
+}
+
+/// The pixels of one ray bundle and the extent of its rays.
+#[derive(Debug, Clone, Copy)]
+pub struct Bundle {
+    /// Pixel columns `[x0, x1)` and rows `[y0, y1)` (rows from the top).
+    pub pixels: [u32; 4],
+    /// Extremes of the ray parameters over the bundle's pixel centres: for a perspective
+    /// view the direction's x and y (the point at depth z is (x·z, y·z, z)); for a parallel
+    /// view the origin's x and y (the point is (x, y, z)).
+    pub x: [f64; 2],
+    pub y: [f64; 2],
+    pub parallel: bool,
+    /// Smallest and largest |d| of the bundle's rays (world length per unit of depth).
+    pub dlen: [f64; 2],
+}
+
+impl Bundle {
+    /// The rays through the centres of pixels `[x0, x1) × [y0, y1)` (non-empty).
+    pub fn from_pixels(f: &ViewFrame, px: [u32; 4]) -> Bundle {
+        // Pixel-centre NDC extremes; j grows downwards, so y0 comes from the last row.
+        let (nx0, ny1) = f.ndc(px[0] as f64, px[2] as f64);
+        let (nx1, ny0) = f.ndc((px[1] - 1) as f64, (px[3] - 1) as f64);
+        let (sx, sy) = match f.parallel {
+            Some(s) => (s * f.aspect, s),
+            None => (f.tan_half * f.aspect, f.tan_half),
+        };
+        let x = [nx0 * sx, nx1 * sx];
+        let y = [ny0 * sy, ny1 * sy];
+        let dlen = if f.parallel.is_some() {
+            [1.0, 1.0]
+        } else {
+            let near = |r: [f64; 2]| {
+                if r[0] <= 0.0 && r[1] >= 0.0 {
+                    0.0
+                } else {
+                    r[0].abs().min(r[1].abs())
+                }
+            };
+            let far = |r: [f64; 2]| r[0].abs().max(r[1].abs());
+            [
+                (1.0 + near(x).powi(2) + near(y).powi(2)).sqrt(),
+                (1.0 + far(x).powi(2) + far(y).powi(2)).sqrt(),
+            ]
+        };
+        Bundle {
+            pixels: px,
+            x,
+            y,
+            parallel: f.parallel.is_some(),
+            dlen,
+        }
+    }
+
+    /// Splits the bundle into up to `g × g` sub-bundles of whole pixels (fewer when it is
+    /// narrower), row-major.
+    pub fn split(&self, f: &ViewFrame, g: u32) -> Vec<Bundle> {
+        let [x0, x1, y0, y1] = self.pixels;
+        let (gx, gy) = (g.min(x1 - x0), g.min(y1 - y0));
+        let cut = |a: u32, n: u32, g: u32, i: u32| a + i * n / g;
+        let mut out = Vec::with_capacity((gx * gy) as usize);
+        for v in 0..gy {
+            for u in 0..gx {
+                out.push(Bundle::from_pixels(
+                    f,
+                    [
+                        cut(x0, x1 - x0, gx, u),
+                        cut(x0, x1 - x0, gx, u + 1),
+                        cut(y0, y1 - y0, gy, v),
+                        cut(y0, y1 - y0, gy, v + 1),
+                    ],
+                ));
+            }
+        }
+        out
+    }
+
+    /// The rectangle `[x0, x1] × [y0, y1]` in the plane of view depth `z` that holds the
+    /// points of all the bundle's rays at that depth.
+    #[inline]
+    pub fn rect_at(&self, z: f64) -> [f64; 4] {
+        if self.parallel {
+            [self.x[0], self.x[1], self.y[0], self.y[1]]
+        } else {
+            [self.x[0] * z, self.x[1] * z, self.y[0] * z, self.y[1] * z]
+        }
+    }
+
+    /// True when every ray of the bundle is strictly inside the particle's support at depth
+    /// `z`, so a sample there is never empty. The support's cross-section is a disc and the
+    /// bundle's a rectangle: both convex, so testing the four corners suffices.
+    #[inline]
+    pub fn covered_by(&self, p: &ViewParticle, z: f64) -> bool {
+        let [x0, x1, y0, y1] = self.rect_at(z);
+        let dz = z - p.c[2];
+        let lim = (p.h * p.h - dz * dz) * (1.0 - 1e-9);
+        if lim <= 0.0 {
+            return false;
+        }
+        let fx = (x0 - p.c[0]).abs().max((x1 - p.c[0]).abs());
+        let fy = (y0 - p.c[1]).abs().max((y1 - p.c[1]).abs());
+        fx * fx + fy * fy < lim
+    }
+}
+
+/// A non-empty cell: its depth index and its references into [`PerspectiveGrid::refs`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cell {
+    /// Cell depth index: the cell covers samples `z·D_z .. (z+1)·D_z`.
+    pub z: u32,
+    /// References `start..end`; those in `unique_end..end` are also referenced by the cell
+    /// at depth `z + 1` of the same bundle (the merge bit is set).
+    pub start: u32,
+    pub unique_end: u32,
+    pub end: u32,
+}
+
+/// Grid resolution: bundle size D_xy in pixels and depth samples per cell D_z.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridParams {
+    pub bundle: u32,
+    pub depth_samples: u32,
+}
+
+impl Default for GridParams {
+    /// The paper's D_xy = 8, D_z = 16.
+    fn default() -> Self {
+        GridParams {
+            bundle: 8,
+            depth_samples: 16,
+        }
+    }
+}
+
+impl GridParams {
+    /// Checks the ranges; D_z must be a power of two (sampling levels halve it).
+    pub fn validate(&self) -> Result<(), GridError> {
+        if !(1..=64).contains(&self.bundle) {
+            return Err(GridError::BundleSize(self.bundle));
+        }
+        if !(1..=64).contains(&self.depth_samples) || !self.depth_samples.is_power_of_two() {
+            return Err(GridError::DepthSamples(self.depth_samples));
+        }
+        Ok(())
+    }
+
+    /// The coarsest sampling level, log2 D_z.
+    pub fn max_level(&self) -> u32 {
+        self.depth_samples.trailing_zeros()
+    }
+}
+
+/// The sparse perspective grid of one view.
+#[derive(Debug, Clone)]
+pub struct PerspectiveGrid {
+    pub frame: ViewFrame,
+    pub params: GridParams,
+    /// Depth samples; `None` when nothing is in front of the camera (then there are no cells).
+    pub depths: Option<SampleDepths>,
+    /// Bundles across and down (M_x, M_y) and cells along depth (M_z).
+    pub bundles_x: u32,
+    pub bundles_y: u32,
+    pub cells_z: u32,
+    pub particles: Vec<ViewParticle>,
+    /// Particles whose support touches at least one cell.
+    pub particles_visible: usize,
+    /// Particle indices, grouped by cell.
+    pub refs: Vec<u32>,
+    /// Non-empty cells, grouped by bundle, front to back within a bundle.
+    pub cells: Vec<Cell>,
+    /// Bundle `b`'s cells are `cells[bundle_cells[b]..bundle_cells[b+1]]` (the first/last cell
+    /// table of Sec. 6.1).
+    bundle_cells: Vec<u32>,
+}
+
+impl PerspectiveGrid {
+    /// Builds the grid from raw particles for one view (Sec. 6.1). `sampling_scale`
+    /// multiplies the number of depth samples (see [`SampleDepths::new`]).
+    pub fn build(
+        particles: &Particles,
+        frame: &ViewFrame,
+        params: GridParams,
+        sampling_scale: f64,
+    ) -> Result<PerspectiveGrid, GridError> {
+        params.validate()?;
+        let vp = view_particles(particles, frame);
+        let d = params.bundle;
+        let (bx, by) = (frame.width.div_ceil(d), frame.height.div_ceil(d));
+        let nb = (bx * by) as usize;
+        let mut grid = PerspectiveGrid {
+            frame: *frame,
+            params,
+            depths: None,
+            bundles_x: bx,
+            bundles_y: by,
+            cells_z: 0,
+            particles: vp.list,
+            particles_visible: 0,
+            refs: Vec::new(),
+            cells: Vec::new(),
+            bundle_cells: vec![0; nb + 1],
+        };
+        let Some((near, far)) = vp.range else {
+            return Ok(grid);
+        };
+        let dz = params.depth_samples as usize;
+        let depths = SampleDepths::new(frame, near, far, sampling_scale, dz)?;
+        grid.cells_z = (depths.len() / dz) as u32;
+
+        // Footprint of each particle: bundle rectangle and cell depth range (inclusive).
+        let feet: Vec<Option<[u32; 6]>> = grid
+            .particles
+            .par_iter()
+            .map(|p| {
+                let r = screen_rect(frame, p, near, far)?;
+                let k = depths.indices_within(p.c[2] - p.h, p.c[2] + p.h);
+                if k.is_empty() {
+                    return None;
+                }
+                Some([
+                    r[0] / d,
+                    (r[1] - 1) / d,
+                    r[2] / d,
+                    (r[3] - 1) / d,
+                    (k.start / dz) as u32,
+                    ((k.end - 1) / dz) as u32,
+                ])
+            })
+            .collect();
+        grid.particles_visible = feet.iter().flatten().count();
+
+        // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle ...
+        let mut offsets = vec![0usize; nb + 1];
+        for f in feet.iter().flatten() {
+            let nz = (f[5] - f[4] + 1) as usize;
+            for y in f[2]..=f[3] {
+                for x in f[0]..=f[1] {
+                    offsets[(y * bx + x) as usize + 1] += nz;
+                }
+            }
+        }
+        for b in 0..nb {
+            offsets[b + 1] += offsets[b];
+        }
+        let mut keys = vec![0u64; offsets[nb]];
+        let mut fill = offsets.clone();
+        for (j, f) in feet.iter().enumerate() {
+            let Some(f) = f else { continue };
+            for y in f[2]..=f[3] {
+                for x in f[0]..=f[1] {
+                    let b = (y * bx + x) as usize;
+                    for z in f[4]..=f[5] {
+                        let bit = (z < f[5]) as u64;
+                        keys[fill[b]] = ((z as u64) << 33) | (bit << 32) | j as u64;
+                        fill[b] += 1;
+                    }
+                }
+            }
+        }
+        // ... then by (cell, merge bit, particle) within each bundle, in parallel.
+        let mut slices: Vec<&mut [u64]> = Vec::with_capacity(nb);
+        let mut rest = keys.as_mut_slice();
+        for b in 0..nb {
+            let (a, r) = rest.split_at_mut(offsets[b + 1] - offsets[b]);
+            slices.push(a);
+            rest = r;
+        }
+        let per_bundle: Vec<Vec<Cell>> = slices
+            .into_par_iter()
+            .enumerate()
+            .map(|(b, s)| {
+                s.sort_unstable();
+                let base = offsets[b] as u32;
+                let mut cells: Vec<Cell> = Vec::new();
+                for (i, &k) in s.iter().enumerate() {
+                    let z = (k >> 33) as u32;
+                    let bit = (k >> 32) & 1 == 1;
+                    let i = base + i as u32;
+                    match cells.last_mut() {
+                        Some(c) if c.z == z => {
+                            c.end = i + 1;
+                            if !bit {
+                                c.unique_end = i + 1;
+                            }
+                        }
+                        _ => cells.push(Cell {
+                            z,
+                            start: i,
+                            unique_end: if bit { i } else { i + 1 },
+                            end: i + 1,
+                        }),
+                    }
+                }
+                cells
+            })
+            .collect();
+        grid.refs = keys.iter().map(|&k| k as u32).collect();
+        grid.cells.reserve(per_bundle.iter().map(Vec::len).sum());
+        for (b, c) in per_bundle.into_iter().enumerate() {
+            grid.cells.extend(c);
+            grid.bundle_cells[b + 1] = grid.cells.len() as u32;
+        }
+        grid.depths = Some(depths);
+        Ok(grid)
+    }
+
+    /// Number of ray bundles (M_x · M_y).
+    pub fn bundle_count(&self) -> usize {
+        (self.bundles_x * self.bundles_y) as usize
+    }
+
+    /// Bundle `b`'s pixels and ray extents.
+    pub fn bundle(&self, b: usize) -> Bundle {
+        let d = self.params.bundle;
+        let (bx, by) = (b as u32 % self.bundles_x, b as u32 / self.bundles_x);
+        Bundle::from_pixels(
+            &self.frame,
+            [
+                bx * d,
+                ((bx + 1) * d).min(self.frame.width),
+                by * d,
+                ((by + 1) * d).min(self.frame.height),
+            ],
+        )
+    }
+
+    /// The cells of bundle `b`, front to back.
+    pub fn bundle_cells(&self, b: usize) -> &[Cell] {
+        &self.cells[self.bundle_cells[b] as usize..self.bundle_cells[b + 1] as usize]
+    }
+
+    /// Index in [`PerspectiveGrid::cells`] of bundle `b`'s first cell.
+    pub fn bundle_first_cell(&self, b: usize) -> usize {
+        self.bundle_cells[b] as usize
+    }
+
+    /// The particles referenced by a run of consecutive cells `cells` (a merged cell),
+    /// each once: the merge bit drops the references the next cell repeats.
+    pub fn merged_refs<'a>(&'a self, cells: &'a [Cell]) -> impl Iterator<Item = u32> + 'a {
+        let last = cells.len().saturating_sub(1);
+        cells.iter().enumerate().flat_map(move |(i, c)| {
+            let end = if i == last { c.end } else { c.unique_end };
+            self.refs[c.start as usize..end as usize].iter().copied()
+        })
+    }
+
+    /// Total particle–cell pairs.
+    pub fn pairs(&self) -> usize {
+        self.refs.len()
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,153 @@
+use super::*;
+use fluidcast_view::Camera;
+
+fn cloud(n: usize, seed: u32) -> Particles {
+    let mut s = seed;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    let mut p = Particles::default();
+    for _ in 0..n {
+        p.positions.push([rnd() - 0.5, rnd() - 0.5, rnd() - 0.5]);
+        p.radii.push(0.05 + 0.15 * rnd());
+        p.volumes.push(0.01);
+        p.masses.push(1.0);
+        p.values.push(rnd());
+    }
+    p
+}
+
+fn frame(parallel: bool, w: u32, h: u32) -> ViewFrame {
+    let mut c = Camera {
+        parallel_projection: parallel,
+        ..Default::default()
+    };
+    c.reset([-0.7; 3], [0.7; 3]);
+    c.azimuth(25.0);
+    c.elevation(15.0);
+    c.orthogonalize_view_up();
+    c.zoom(1.3);
+    c.frame(w, h).unwrap()
+}
+
+/// Every ray sample inside a particle's support finds that particle in its cell, and each
+/// cell's merge bits agree with the next cell's references.
+#[test]
+fn cells_hold_every_contributing_particle() {
+    let p = cloud(80, 3);
+    for parallel in [false, true] {
+        let f = frame(parallel, 37, 29);
+        for params in [
+            GridParams::default(),
+            GridParams {
+                bundle: 3,
+                depth_samples: 4,
+            },
+        ] {
+            let g = PerspectiveGrid::build(&p, &f, params, 0.5).unwrap();
+            let depths = g.depths.as_ref().unwrap();
+            assert_eq!(depths.len() % params.depth_samples as usize, 0);
+            let mut checked = 0;
+            for j in 0..f.height {
+                for i in 0..f.width {
+                    let b = ((j / params.bundle) * g.bundles_x + i / params.bundle) as usize;
+                    let cells = g.bundle_cells(b);
+                    let ray = Ray::through_pixel(&f, i, j);
+                    for (k, &z) in depths.z[..depths.len()].iter().enumerate() {
+                        for (q, vp) in g.particles.iter().enumerate() {
+                            if ray.distance_at(z, vp) >= vp.h {
+                                continue;
+                            }
+                            let cz = (k / params.depth_samples as usize) as u32;
+                            let c = cells
+                                .iter()
+                                .find(|c| c.z == cz)
+                                .expect("cell of a contributing sample exists");
+                            assert!(g.refs[c.start as usize..c.end as usize].contains(&(q as u32)));
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+            assert!(checked > 1000, "{checked}");
+            for b in 0..g.bundle_count() {
+                let cells = g.bundle_cells(b);
+                for w in cells.windows(2) {
+                    assert!(w[0].z < w[1].z);
+                }
+                for c in cells {
+                    let next = cells.iter().find(|n| n.z == c.z + 1);
+                    for &r in &g.refs[c.unique_end as usize..c.end as usize] {
+                        let n = next.expect("merge bit set but no next cell");
+                        assert!(g.refs[n.start as usize..n.end as usize].contains(&r));
+                    }
+                }
+                // A merged run references each particle once, and all of them.
+                if cells.len() >= 2 && cells[1].z == cells[0].z + 1 {
+                    let mut m: Vec<u32> = g.merged_refs(&cells[..2]).collect();
+                    let n = m.len();
+                    m.sort();
+                    m.dedup();
+                    assert_eq!(m.len(), n);
+                    let mut all: Vec<u32> =
+                        g.refs[cells[0].start as usize..cells[1].end as usize].to_vec();
+                    all.sort();
+                    all.dedup();
+                    assert_eq!(all, m);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn bundle_rect_and_coverage_hold_the_rays() {
+    let f = frame(false, 40, 30);
+    let p = cloud(10, 9);
+    let g = PerspectiveGrid::build(&p, &f, GridParams::default(), 1.0).unwrap();
+    for b in 0..g.bundle_count() {
+        let whole = g.bundle(b);
+        let parts = whole.split(&f, 3);
+        assert_eq!(
+            parts
+                .iter()
+                .map(|p| (p.pixels[1] - p.pixels[0]) * (p.pixels[3] - p.pixels[2]))
+                .sum::<u32>(),
+            (whole.pixels[1] - whole.pixels[0]) * (whole.pixels[3] - whole.pixels[2])
+        );
+        for bd in std::iter::once(whole).chain(parts) {
+            for j in bd.pixels[2]..bd.pixels[3] {
+                for i in bd.pixels[0]..bd.pixels[1] {
+                    let r = Ray::through_pixel(&f, i, j);
+                    assert!(r.dlen >= bd.dlen[0] - 1e-12 && r.dlen <= bd.dlen[1] + 1e-12);
+                    for z in [0.5, 2.0, 7.0] {
+                        let [x0, x1, y0, y1] = bd.rect_at(z);
+                        let (x, y) = (r.o[0] + z * r.d[0], r.o[1] + z * r.d[1]);
+                        assert!(x >= x0 - 1e-12 && x <= x1 + 1e-12);
+                        assert!(y >= y0 - 1e-12 && y <= y1 + 1e-12);
+                        for vp in &g.particles {
+                            if bd.covered_by(vp, z) {
+                                assert!(r.distance_at(z, vp) < vp.h);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn within_matches_a_scan() {
+    let zs: Vec<f64> = (0..50).map(|i| 1.0 + 0.1 * i as f64).collect();
+    for (a, b) in [(0.0, 10.0), (1.05, 1.3), (1.1, 1.1), (3.0, 2.0), (6.0, 9.0)] {
+        let r = within(&zs, a, b);
+        let want: Vec<usize> = (0..zs.len())
+            .filter(|&k| zs[k] >= a && zs[k] <= b)
+            .collect();
+        assert_eq!(r.collect::<Vec<_>>(), want);
+    }
+}
