@@ -1,16 +1,134 @@
 //! Emission–absorption ray casting of SPH particle fields.
 //!
-//! [`render_reference`] is the reference renderer: the oracle every faster path is tested
-//! against. It samples each pixel's ray at the logarithmically spaced view depths of
+//! Both renderers sample each pixel's ray at the logarithmically spaced view depths of
 //! Hochstetter et al. 2016, Eq. 8 (`z_i = n (f/n)^(i/N)`), with `N` from Fraedrich et al.
 //! 2010 (`m = ln(f/n)/σ`, σ the angular pixel size) so that the depth step matches the
-//! lateral pixel footprint, scaled by the frustum-corner factor λ and a user factor.
-//! Samples lie on planes of constant view depth, shared by all rays (the perspective grid's
-//! slices). Each sample's field value is the exact kernel sum over all particles whose
-//! support contains it.
+//! lateral pixel footprint, scaled by the frustum-corner factor λ and a user factor, and
+//! rounded up to a multiple of the grid's samples per cell. Samples lie on planes of constant
+//! view depth, shared by all rays. Each sample's field value is the exact kernel sum over all
+//! particles whose support contains it.
+//!
+//! * [`render_reference`] is the oracle every faster path is tested against: particles are
+//!   binned into 8×8-pixel tiles and every ray scatters all particles of its tile into its
+//!   samples before compositing.
+//! * [`render_adaptive`] is the paper's pipeline: the sparse perspective grid
+//!   ([`fluidcast_grid`]), the sampling plan ([`fluidcast_plan`]: error analysis, greedy
+//!   levels, super-pixels, merging) and bundle-coherent ray casting (Alg. 2) that walks each
+//!   bundle's cells front to back and stops once all its rays are opaque. With no error
+//!   tolerance it samples exactly the reference's positions.
 
+mod adaptive;
+mod raycast;
 mod reference;
 
-pub use reference::{
-    render_reference, RenderError, RenderParams, RenderStats, SampleDepths, MAX_SIDE,
-};
+use std::time::Instant;
+
+pub use adaptive::{render_adaptive, AdaptiveRender, SURFACE_THRESHOLD};
+pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
+pub use fluidcast_plan::{PlanError, PlanParams, PlanStats};
+pub use reference::render_reference;
+
+use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_view::CameraError;
+
+/// Largest image side and pixel count the renderer accepts.
+pub const MAX_SIDE: u32 = 16384;
+const MAX_PIXELS: u64 = 1 << 27;
+
+/// Parameters of a rendering, shared by every renderer (and the GPU path).
+#[derive(Debug, Clone)]
+pub struct RenderParams {
+    /// Image size in pixels.
+    pub width: u32,
+    pub height: u32,
+    pub kernel: Kernel,
+    pub field: FieldKind,
+    /// Multiplies the number of depth samples (1 = depth step equals the pixel footprint).
+    pub sampling_scale: f64,
+    /// A ray stops once its transmittance drops below this.
+    pub min_transmittance: f64,
+    /// Bundle size D_xy and depth samples per cell D_z (the reference uses D_z only, to
+    /// sample the same depths).
+    pub grid: GridParams,
+    /// Error tolerance and the optimisations of the adaptive renderer.
+    pub adaptive: PlanParams,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        RenderParams {
+            width: 512,
+            height: 512,
+            kernel: Kernel::CubicSpline,
+            field: FieldKind::Csph,
+            sampling_scale: 1.0,
+            min_transmittance: 1e-4,
+            grid: GridParams::default(),
+            adaptive: PlanParams::default(),
+        }
+    }
+}
+
+/// Why a rendering could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("camera: {0}")]
+    Camera(#[from] CameraError),
+    #[error("image size {0}x{1} is out of range (each side 1..={MAX_SIDE}, at most {MAX_PIXELS} pixels)")]
+    ImageSize(u32, u32),
+    #[error(transparent)]
+    Grid(#[from] GridError),
+    #[error(transparent)]
+    Plan(#[from] PlanError),
+    #[error("minimum transmittance {0} must be in [0, 1)")]
+    MinTransmittance(f64),
+}
+
+/// Timings and counts of one rendering.
+#[derive(Debug, Clone, Default)]
+pub struct RenderStats {
+    /// (stage, milliseconds) in order; `total` covers the renderer's own stages.
+    pub stages: Vec<(&'static str, f64)>,
+    pub particles: usize,
+    /// Particles whose support intersects the view frustum.
+    pub particles_visible: usize,
+    /// Samples with at least one contributing particle that were composited.
+    pub samples: u64,
+    /// Depth samples per ray (N) and the view-depth range [near, far].
+    pub depth_samples: usize,
+    pub near: f64,
+    pub far: f64,
+    pub width: u32,
+    pub height: u32,
+    /// Grid renderer only: ray bundles, non-empty cells, particle–cell pairs and the plan.
+    pub bundles: u64,
+    pub cells: u64,
+    pub pairs: u64,
+    pub plan: Option<PlanStats>,
+}
+
+impl RenderStats {
+    /// Milliseconds of a stage, if it ran.
+    pub fn stage(&self, name: &str) -> Option<f64> {
+        self.stages.iter().find(|s| s.0 == name).map(|s| s.1)
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn validate(params: &RenderParams) -> Result<(), RenderError> {
+    let (w, h) = (params.width, params.height);
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || (w as u64 * h as u64) > MAX_PIXELS {
+        return Err(RenderError::ImageSize(w, h));
+    }
+    if !(0.0..1.0).contains(&params.min_transmittance) {
+        return Err(RenderError::MinTransmittance(params.min_transmittance));
+    }
+    if !(params.sampling_scale.is_finite() && params.sampling_scale > 0.0) {
+        return Err(GridError::SamplingScale(params.sampling_scale).into());
+    }
+    params.grid.validate()?;
+    Ok(())
+}

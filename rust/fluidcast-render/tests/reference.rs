@@ -104,7 +104,14 @@ fn reference_equals_brute_force() {
         };
         let (img, stats) = render_reference(&p, &cam, &tf, &prm).unwrap();
         let f = cam.frame(prm.width, prm.height).unwrap();
-        let depths = SampleDepths::new(&f, stats.near, stats.far, 1.0).unwrap();
+        let depths = SampleDepths::new(
+            &f,
+            stats.near,
+            stats.far,
+            1.0,
+            prm.grid.depth_samples as usize,
+        )
+        .unwrap();
         let bf = brute_force(&p, &cam, &tf, &prm, &depths);
         let mut max = 0.0f64;
         for (a, b) in img.rgba.iter().zip(&bf) {
@@ -177,7 +184,7 @@ fn uniform_slab_transmittance_is_exponential() {
 fn sample_index_ranges_are_exact() {
     let cam = Camera::default();
     let f = cam.frame(100, 80).unwrap();
-    let d = SampleDepths::new(&f, 0.5, 3.0, 1.0).unwrap();
+    let d = SampleDepths::new(&f, 0.5, 3.0, 1.0, 1).unwrap();
     for (z0, z1) in [
         (0.4, 0.6),
         (1.0, 1.0001),

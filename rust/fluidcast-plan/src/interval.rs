@@ -1,0 +1,56 @@
+//! Interval arithmetic on (irradiance, transparency) for the error analysis (Sec. 4).
+
+/// Bounds on a composited segment of a ray: channels 0–2 are premultiplied irradiance
+/// I (red, green, blue) and channel 3 is transparency T. Every ray of a bundle, and both the
+/// full-rate and the adaptive rendering, lie inside `[lo, hi]` per channel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bound {
+    pub lo: [f64; 4],
+    pub hi: [f64; 4],
+}
+
+impl Bound {
+    /// A segment that emits nothing and lets everything through (I = 0, T = 1), exactly.
+    pub const EMPTY: Bound = Bound {
+        lo: [0.0, 0.0, 0.0, 1.0],
+        hi: [0.0, 0.0, 0.0, 1.0],
+    };
+
+    /// `self` in front of `back` (Eq. 3/4): I = I_f + T_f·I_b, T = T_f·T_b. All quantities
+    /// are non-negative, so lower bounds compose with lower bounds and upper with upper.
+    #[inline]
+    pub fn over(&self, back: &Bound) -> Bound {
+        let (f, b) = (self, back);
+        Bound {
+            lo: [
+                f.lo[0] + f.lo[3] * b.lo[0],
+                f.lo[1] + f.lo[3] * b.lo[1],
+                f.lo[2] + f.lo[3] * b.lo[2],
+                f.lo[3] * b.lo[3],
+            ],
+            hi: [
+                f.hi[0] + f.hi[3] * b.hi[0],
+                f.hi[1] + f.hi[3] * b.hi[1],
+                f.hi[2] + f.hi[3] * b.hi[2],
+                f.hi[3] * b.hi[3],
+            ],
+        }
+    }
+
+    /// w(·): the largest width over the four channels, an upper bound on the difference of
+    /// any two colours or alphas (α = 1 − T) inside the bound.
+    #[inline]
+    pub fn width(&self) -> f64 {
+        (0..4).map(|c| self.hi[c] - self.lo[c]).fold(0.0, f64::max)
+    }
+
+    /// The midpoint (the super-pixel value of Sec. 5.2).
+    pub fn mid(&self) -> [f64; 4] {
+        [0, 1, 2, 3].map(|c| 0.5 * (self.lo[c] + self.hi[c]))
+    }
+
+    /// True when `v` (I rgb, T) lies inside, with slack `eps`.
+    pub fn contains(&self, v: [f64; 4], eps: f64) -> bool {
+        (0..4).all(|c| v[c] >= self.lo[c] - eps && v[c] <= self.hi[c] + eps)
+    }
+}

@@ -1,0 +1,131 @@
+//! The per-ray pieces both renderers share: scattering a particle into a ray's samples and
+//! front-to-back compositing.
+
+use fluidcast_grid::{within, Ray, ViewParticle};
+use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_view::TransferFunction;
+
+/// Kernel sums of one ray at a set of sample depths.
+#[derive(Debug, Clone)]
+pub(crate) struct Sums {
+    pub weighted: Vec<f64>,
+    pub shepard: Vec<f64>,
+    pub density: Vec<f64>,
+}
+
+impl Sums {
+    pub fn new(n: usize) -> Sums {
+        Sums {
+            weighted: vec![0.0; n],
+            shepard: vec![0.0; n],
+            density: vec![0.0; n],
+        }
+    }
+
+    /// Adds particle `p`'s kernel weights at the samples `zs` (ascending view depths) that lie
+    /// inside its support along `ray`; returns the touched index range.
+    #[inline]
+    pub fn scatter(
+        &mut self,
+        ray: &Ray,
+        p: &ViewParticle,
+        zs: &[f64],
+        kernel: Kernel,
+    ) -> Option<std::ops::Range<usize>> {
+        let (z0, z1) = ray.support_interval(p)?;
+        let range = within(zs, z0, z1);
+        if range.is_empty() {
+            return None;
+        }
+        for k in range.clone() {
+            let wgt = kernel.eval(ray.distance_at(zs[k], p), p.h);
+            if wgt > 0.0 {
+                self.weighted[k] += p.v * p.a * wgt;
+                self.shepard[k] += p.v * wgt;
+                self.density[k] += p.m * wgt;
+            }
+        }
+        Some(range)
+    }
+
+    /// The field value at sample `k`, or `None` when no particle contributes there.
+    #[inline]
+    pub fn value(&self, k: usize, field: FieldKind) -> Option<f64> {
+        let s = self.shepard[k];
+        if s > 0.0 {
+            Some(match field {
+                FieldKind::Csph => self.weighted[k] / s,
+                FieldKind::Sph => self.weighted[k],
+                FieldKind::Density => self.density[k],
+            })
+        } else {
+            None
+        }
+    }
+
+    pub fn clear(&mut self, r: std::ops::Range<usize>) {
+        self.weighted[r.clone()].fill(0.0);
+        self.shepard[r.clone()].fill(0.0);
+        self.density[r].fill(0.0);
+    }
+}
+
+/// Front-to-back compositing state of one ray: premultiplied colour, transmittance and the
+/// depth where opacity first exceeded ½.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Compositor {
+    pub color: [f64; 3],
+    pub trans: f64,
+    pub depth: f32,
+    pub samples: u64,
+    pub done: bool,
+}
+
+impl Compositor {
+    pub fn new() -> Compositor {
+        Compositor {
+            color: [0.0; 3],
+            trans: 1.0,
+            depth: f32::INFINITY,
+            samples: 0,
+            done: false,
+        }
+    }
+
+    /// Composites a sample of value `q` over a step of world length `ds` at depth `z`.
+    #[inline]
+    pub fn sample(&mut self, tf: &TransferFunction, q: f64, ds: f64, z: f64, min_t: f64) {
+        let (rgb, alpha) = tf.eval(q);
+        let a = tf.step_alpha(alpha, ds);
+        self.samples += 1;
+        self.add([a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a], z, min_t);
+    }
+
+    /// Composites a premultiplied (I rgb, T) segment starting at depth `z`.
+    #[inline]
+    pub fn add(&mut self, it: [f64; 4], z: f64, min_t: f64) {
+        for (c, i) in self.color.iter_mut().zip(it) {
+            *c += self.trans * i;
+        }
+        self.trans *= it[3];
+        if self.trans < 0.5 && self.depth.is_infinite() {
+            self.depth = z as f32;
+        }
+        if self.trans < min_t {
+            self.done = true;
+        }
+    }
+
+    /// Premultiplied RGBA and depth.
+    pub fn pixel(&self) -> ([f32; 4], f32) {
+        (
+            [
+                self.color[0] as f32,
+                self.color[1] as f32,
+                self.color[2] as f32,
+                (1.0 - self.trans) as f32,
+            ],
+            self.depth,
+        )
+    }
+}
