@@ -1,9 +1,11 @@
 //! `fluidcast`: volume rendering of SPH particle files from the command line.
 
+mod bench;
 mod info;
 mod options;
 mod probe;
 mod render;
+mod view;
 
 use std::path::PathBuf;
 
@@ -31,6 +33,8 @@ enum Command {
     Compare(CompareArgs),
     /// Evaluate the reconstructed field at given points (CSV in, CSV out).
     Probe(probe::ProbeArgs),
+    /// Time the adaptive renderer against full rate and the reference over a camera orbit.
+    Bench(Box<bench::BenchArgs>),
 }
 
 #[derive(clap::Args)]
@@ -81,6 +85,7 @@ fn main() {
         Command::Info(a) => info::run(a),
         Command::Compare(a) => compare(a),
         Command::Probe(a) => probe::run(a),
+        Command::Bench(a) => bench::run(*a),
     };
     if let Err(e) = r {
         eprintln!("error: {e:#}");

@@ -2,14 +2,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use fluidcast_image::Image;
 use fluidcast_io::{read_dataset, Input};
-use fluidcast_render::{render_reference, RenderParams, RenderStats};
+use fluidcast_render::{render_adaptive, render_reference, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
+use crate::view::{Mode, SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -21,46 +23,10 @@ pub struct RenderArgs {
     output: PathBuf,
     #[command(flatten)]
     particles: ParticleArgs,
-    /// Camera JSON file (vtkCamera fields: position, focal_point, view_up, view_angle,
-    /// parallel_projection, parallel_scale) or `auto` (vtkRenderer::ResetCamera on the data,
-    /// looking down -z with y up).
-    #[arg(long, default_value = "auto")]
-    camera: String,
-    /// Rotate the camera about view up (degrees, as vtkCamera::Azimuth), after --camera.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    azimuth: f64,
-    /// Rotate the camera up/down about the focal point (degrees, as vtkCamera::Elevation).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    elevation: f64,
-    /// Zoom factor (> 1 zooms in, as vtkCamera::Zoom).
-    #[arg(long, default_value_t = 1.0)]
-    zoom: f64,
-    /// Use a parallel projection (for --camera auto).
-    #[arg(long)]
-    parallel: bool,
-    /// Write the camera used (JSON) here.
-    #[arg(long)]
-    save_camera: Option<PathBuf>,
-    /// Image size in pixels, WxH.
-    #[arg(long, default_value = "800x600")]
-    size: String,
-    /// Transfer function: a built-in preset (Cool to Warm, Viridis, Inferno, Grayscale) or a
-    /// ParaView colour-map preset .json file.
-    #[arg(long, default_value = "Viridis")]
-    tf: String,
-    /// Data range mapped onto the colour map, lo,hi (default: the first frame's value range).
-    #[arg(long, allow_hyphen_values = true)]
-    range: Option<String>,
-    /// Distance (world units) over which the transfer function's opacity applies, as
-    /// ParaView's Scalar Opacity Unit Distance. Default: bounds diagonal / cbrt(particles).
-    #[arg(long)]
-    opacity_unit_distance: Option<f64>,
-    /// Multiply the transfer function's opacities.
-    #[arg(long, default_value_t = 1.0)]
-    opacity_scale: f64,
-    /// Depth samples per pixel footprint (1 = the depth step equals the pixel footprint).
-    #[arg(long, default_value_t = 1.0)]
-    sampling_scale: f64,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    sampling: SamplingArgs,
     /// Background colour (linear RGB, 0..1) for PNG output.
     #[arg(long, default_value = "1,1,1")]
     background: String,
@@ -70,43 +36,77 @@ pub struct RenderArgs {
     /// Write timings and counts as JSON here (for a series: one object per frame in a list).
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// With PNG output and an error tolerance, also write NAME.plan.png (per bundle: grey =
+    /// cells at full rate, green = adapted in depth, yellow = super-pixels, as in the paper's
+    /// Fig. 3) and NAME.error.png (predicted error bound / E_I, white = E_I or more). EXR
+    /// output always carries these as channels error_bound, level and superpixel.
+    #[arg(long)]
+    aovs: bool,
 }
 
-fn parse_pair(s: &str, what: &str) -> Result<(f64, f64)> {
-    let v: Vec<&str> = s.split(',').collect();
-    if v.len() != 2 {
-        bail!("{what} '{s}': expected two numbers, lo,hi");
+/// Renders one frame with the chosen renderer.
+pub fn render_frame(
+    particles: &Particles,
+    surface: Option<&[bool]>,
+    camera: &Camera,
+    tf: &TransferFunction,
+    params: &RenderParams,
+    mode: Mode,
+) -> Result<(Image, RenderStats)> {
+    Ok(match mode {
+        Mode::Reference => render_reference(particles, camera, tf, params)?,
+        Mode::Adaptive => {
+            let r = render_adaptive(particles, surface, camera, tf, params)?;
+            (r.image, r.stats)
+        }
+    })
+}
+
+fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<()> {
+    if out.extension().map(|e| e.eq_ignore_ascii_case("exr")) == Some(true) {
+        return Ok(());
     }
-    Ok((
-        v[0].trim()
-            .parse()
-            .with_context(|| format!("{what} '{s}'"))?,
-        v[1].trim()
-            .parse()
-            .with_context(|| format!("{what} '{s}'"))?,
-    ))
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size '{s}': expected WxH, e.g. 800x600"))?;
-    let w: u64 = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    let h: u64 = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    if w == 0
-        || h == 0
-        || w > fluidcast_render::MAX_SIDE as u64
-        || h > fluidcast_render::MAX_SIDE as u64
-    {
-        bail!(
-            "--size {w}x{h}: each side must be 1..={} pixels",
-            fluidcast_render::MAX_SIDE
-        );
+    let (Some(e), false) = (tolerance, image.aovs.is_empty()) else {
+        eprintln!("note: --aovs: no error tolerance, so no plan to show");
+        return Ok(());
+    };
+    let get = |name: &str| image.aovs.iter().find(|a| a.0 == name).map(|a| &a.1);
+    let (Some(err), Some(level), Some(sp)) = (get("error_bound"), get("level"), get("superpixel"))
+    else {
+        return Ok(());
+    };
+    let stem = out.with_extension("");
+    let mut plan = Image::new(image.width, image.height);
+    let mut errimg = Image::new(image.width, image.height);
+    for i in 0..plan.rgba.len() {
+        // Cells not adapted or super-pixels are at full rate; colour by share, shade by level.
+        let s = sp[i];
+        let adapted = (level[i] / 4.0).min(1.0) * (1.0 - s);
+        let full = (1.0 - s - adapted).max(0.0);
+        let c = [
+            0.5 * full + 0.1 * adapted + 1.0 * s,
+            0.5 * full + 0.8 * adapted + 0.85 * s,
+            0.5 * full + 0.1 * adapted,
+        ];
+        let covered = image.rgba[i][3] > 0.0;
+        plan.rgba[i] = if covered {
+            [c[0], c[1], c[2], 1.0]
+        } else {
+            [0.0; 4]
+        };
+        let v = (err[i] as f64 / e.max(1e-12)).min(1.0) as f32;
+        errimg.rgba[i] = [v, v, v, 1.0];
     }
-    Ok((w as u32, h as u32))
+    for (img, suffix) in [(plan, "plan"), (errimg, "error")] {
+        let p = PathBuf::from(format!("{}.{suffix}.png", stem.display()));
+        img.write_png(&p, [1.0; 3])
+            .with_context(|| format!("writing {}", p.display()))?;
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
 }
 
-fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
+pub fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
     let parts: Vec<&str> = s.split(':').collect();
     let num = |t: &str, d: usize| -> Result<usize> {
         if t.trim().is_empty() {
@@ -163,30 +163,30 @@ fn frame_path(pattern: &Path, index: usize) -> Result<PathBuf> {
     )))
 }
 
-fn load_tf(spec: &str) -> Result<TransferFunction> {
-    let p = Path::new(spec);
-    if p.extension().map(|e| e.eq_ignore_ascii_case("json")) == Some(true) || p.exists() {
-        let text = std::fs::read_to_string(p)
-            .with_context(|| format!("reading transfer function {spec}"))?;
-        Ok(TransferFunction::from_paraview_json(&text, spec)?)
-    } else {
-        Ok(TransferFunction::preset(spec)?)
-    }
-}
-
-fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json::Value {
+pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json::Value {
     let stages: serde_json::Map<String, serde_json::Value> = s
         .stages
         .iter()
         .map(|(k, v)| (format!("{k}_ms"), json!(v)))
         .collect();
-    json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
+    let mut v = json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
            "samples": s.samples, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
-           "image": {"width": s.width, "height": s.height}})
+           "image": {"width": s.width, "height": s.height}});
+    if let Some(p) = &s.plan {
+        v["grid"] = json!({"bundles": s.bundles, "cells": s.cells, "particle_cell_pairs": s.pairs});
+        v["cells"] = json!({
+            "full_rate": p.level_cells[0],
+            "z_adapted_per_level": &p.level_cells[1..],
+            "superpixel": p.superpixel_cells,
+            "surface": p.surface_cells,
+            "merged": p.merged_cells,
+        });
+        v["particle_refs_sampled"] = json!(p.refs_sampled);
+    }
+    v
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let (width, height) = parse_size(&a.size)?;
     let background = {
         let v: Vec<f32> = a
             .background
@@ -218,22 +218,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
     }
     let spec = a.particles.spec()?;
-    let params = RenderParams {
-        width,
-        height,
-        kernel: a.particles.kernel()?,
-        field: a.particles.field()?,
-        sampling_scale: a.sampling_scale,
-        ..Default::default()
-    };
-    let mut tf = load_tf(&a.tf)?;
-    if !(a.opacity_scale.is_finite() && a.opacity_scale >= 0.0) {
-        bail!(
-            "--opacity-scale {}: must be finite and >= 0",
-            a.opacity_scale
-        );
-    }
-    tf.scale_opacity(a.opacity_scale);
+    let params = a.sampling.params(&a.view, &a.particles)?;
+    let base_tf = a.view.base_tf()?;
+    let mut tf = base_tf.clone();
 
     let progress = (frames.len() > 1).then(|| {
         let pb = ProgressBar::new(frames.len() as u64);
@@ -266,89 +253,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 eprintln!("note: {note}");
             }
             // Camera, range and opacity unit are fixed from the first frame for a whole series.
-            let mut cam = if a.camera == "auto" {
-                let (lo, hi) = particles.support_bounds();
-                let mut c = Camera {
-                    parallel_projection: a.parallel,
-                    ..Default::default()
-                };
-                c.reset(lo.map(f64::from), hi.map(f64::from));
-                c
-            } else {
-                let text = std::fs::read_to_string(&a.camera)
-                    .with_context(|| format!("reading camera file {}", a.camera))?;
-                Camera::from_json(&text).with_context(|| format!("camera file {}", a.camera))?
-            };
-            cam.azimuth(a.azimuth);
-            cam.elevation(a.elevation);
-            cam.orthogonalize_view_up();
-            if !(a.zoom.is_finite() && a.zoom > 0.0) {
-                bail!("--zoom {}: must be > 0", a.zoom);
-            }
-            cam.zoom(a.zoom);
-            if let Some(p) = &a.save_camera {
-                std::fs::write(p, serde_json::to_string_pretty(&cam)?)
-                    .with_context(|| format!("writing {}", p.display()))?;
-            }
+            let (cam, t) = a
+                .view
+                .setup(&particles, &params, &base_tf, progress.is_none())?;
             camera = Some(cam);
-            let (lo, hi) = match &a.range {
-                Some(r) => parse_pair(r, "--range")?,
-                None => {
-                    let (lo, hi) = match params.field {
-                        fluidcast_sph::FieldKind::Csph => {
-                            let r = particles.value_range();
-                            (r.0 as f64, r.1 as f64)
-                        }
-                        // For sums, map up to the typical field magnitude at a particle.
-                        _ => {
-                            let s = particles.sample_many(
-                                params.kernel,
-                                &particles
-                                    .positions
-                                    .iter()
-                                    .step_by((particles.len() / 2000).max(1))
-                                    .map(|p| p.map(f64::from))
-                                    .collect::<Vec<_>>(),
-                            );
-                            let v: Vec<f64> =
-                                s.iter().filter_map(|s| s.value(params.field)).collect();
-                            (0.0, v.iter().copied().fold(0.0, f64::max))
-                        }
-                    };
-                    if lo < hi {
-                        (lo, hi)
-                    } else {
-                        (lo - 0.5, lo + 0.5)
-                    }
-                }
-            };
-            tf = tf.clone().with_range(lo, hi)?;
-            tf.unit_distance = match a.opacity_unit_distance {
-                Some(u) if u.is_finite() && u > 0.0 => u,
-                Some(u) => bail!("--opacity-unit-distance {u}: must be finite and > 0"),
-                None => {
-                    let (lo, hi) = particles.support_bounds();
-                    let diag = (0..3)
-                        .map(|k| ((hi[k] - lo[k]) as f64).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    diag / (particles.len() as f64).cbrt()
-                }
-            };
-            if progress.is_none() {
-                eprintln!(
-                    "rendering {} particles at {width}x{height}, {} kernel, field {:?}, range [{lo:.6}, {hi:.6}], opacity unit distance {:.6}",
-                    particles.len(),
-                    params.kernel,
-                    params.field,
-                    tf.unit_distance
-                );
-            }
+            tf = t;
         }
         let prep_ms = t_prep.elapsed().as_secs_f64() * 1e3;
-        let (image, mut stats) =
-            render_reference(&particles, camera.as_ref().unwrap(), &tf, &params)
-                .with_context(|| format!("rendering {}", file.display()))?;
+        let (image, mut stats) = render_frame(
+            &particles,
+            None,
+            camera.as_ref().unwrap(),
+            &tf,
+            &params,
+            a.sampling.mode,
+        )
+        .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));
         let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') {
@@ -360,6 +280,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         image
             .save(&out, background)
             .with_context(|| format!("writing {}", out.display()))?;
+        if a.aovs {
+            write_aov_pngs(&image, &out, params.adaptive.tolerance)?;
+        }
         stats
             .stages
             .push(("write", t_write.elapsed().as_secs_f64() * 1e3));
@@ -371,7 +294,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 let total: f64 = stats
                     .stages
                     .iter()
-                    .filter(|(k, _)| !matches!(*k, "bin" | "raycast"))
+                    .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "raycast"))
                     .map(|(_, v)| v)
                     .sum();
                 eprintln!(

@@ -237,10 +237,23 @@ fn stats_and_compare() {
     assert!(ok, "{err}");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
-    for k in ["read_ms", "bin_ms", "raycast_ms", "total_ms"] {
+    for k in ["read_ms", "grid_ms", "adapt_ms", "raycast_ms", "total_ms"] {
         assert!(s["timings"][k].as_f64().unwrap() >= 0.0, "{k}");
     }
     assert_eq!(s["particles"], 256);
+    let cells = s["grid"]["cells"].as_u64().unwrap();
+    let c = &s["cells"];
+    let z: u64 = c["z_adapted_per_level"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        c["full_rate"].as_u64().unwrap() + z + c["superpixel"].as_u64().unwrap(),
+        cells,
+        "every cell has one outcome"
+    );
     // The same particles from the ascii file give the same image.
     let b = dir.path().join("b.exr");
     let (ok, _) = run(&[

@@ -339,6 +339,11 @@ fn cell_bounds(
         (1u64 << parts.len()) - 1
     };
     let mut cover = [0u64; 64];
+    // Smallest squared half diagonal of a sub-bundle (at unit depth for a perspective view).
+    let part_r2 = parts
+        .iter()
+        .map(|b| 0.25 * ((b.x[1] - b.x[0]).powi(2) + (b.y[1] - b.y[0]).powi(2)))
+        .fold(f64::INFINITY, f64::min);
     for &j in &grid.refs[cell.start as usize..cell.end as usize] {
         let p = &grid.particles[j as usize];
         let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
@@ -361,6 +366,13 @@ fn cell_bounds(
             sum_lo[k] += slo;
             sum_hi[k] += shi;
             if cover[k] != full {
+                // The disc must at least reach over a sub-bundle's half diagonal.
+                let dzk = zs[k] - p.c[2];
+                let lim = p.h * p.h - dzk * dzk;
+                let scale = if bundle.parallel { 1.0 } else { zs[k] * zs[k] };
+                if lim <= part_r2 * scale {
+                    continue;
+                }
                 if bundle.covered_by(p, zs[k]) {
                     cover[k] = full;
                 } else {

@@ -65,7 +65,9 @@ pub fn render_adaptive(
     let computed;
     let surface = match surface {
         Some(s) => Some(s),
-        None if a.tolerance.is_some() && a.surface_cells => {
+        // Strict bounds already account for rays leaving the fluid; only relaxed
+        // estimates need the surface test.
+        None if a.tolerance.is_some() && a.surface_cells && a.relax > 0.0 => {
             computed = particles.surface_flags(SURFACE_THRESHOLD);
             Some(computed.as_slice())
         }

@@ -1,0 +1,267 @@
+//! `fluidcast bench`: adaptive vs full-rate vs reference over a camera orbit and/or frames.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use fluidcast_image::Image;
+use fluidcast_io::{read_dataset, Input};
+use fluidcast_render::{render_adaptive, render_reference, RenderStats};
+use fluidcast_sph::Particles;
+use indicatif::{ProgressBar, ProgressStyle};
+use serde_json::json;
+
+use crate::options::ParticleArgs;
+use crate::view::{parse_tolerance, SamplingArgs, ViewArgs};
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// A .vtu, .vtp, legacy .vtk file, or a .pvd series.
+    input: PathBuf,
+    #[command(flatten)]
+    particles: ParticleArgs,
+    #[command(flatten)]
+    view: ViewArgs,
+    /// Grid and optimisation options (--mode and --error-tolerance are ignored: the bench
+    /// sweeps --tolerances).
+    #[command(flatten)]
+    sampling: SamplingArgs,
+    /// Views on a camera orbit (azimuth steps of 360°/N about the first view).
+    #[arg(long, default_value_t = 8)]
+    views: usize,
+    /// Frames of a .pvd series, START:END[:STEP] (default: the first frame).
+    #[arg(long)]
+    frames: Option<String>,
+    /// Error tolerances to compare, comma-separated; `off` is always included.
+    #[arg(long, default_value = "0.001,0.004,0.01")]
+    tolerances: String,
+    /// Skip the reference renderer (it is the slowest).
+    #[arg(long)]
+    no_reference: bool,
+    /// Write the results as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Per configuration: per-view stage timings and errors against `off`.
+#[derive(Default)]
+struct Runs {
+    stages: Vec<Vec<(&'static str, f64)>>,
+    max_err: f64,
+    above: u64,
+    pixels: u64,
+    views_above: usize,
+    samples: u64,
+}
+
+impl Runs {
+    fn add(&mut self, s: &RenderStats) {
+        self.stages.push(s.stages.clone());
+        self.samples += s.samples;
+    }
+    fn median(&self, stage: &str) -> f64 {
+        let mut v: Vec<f64> = self
+            .stages
+            .iter()
+            .filter_map(|st| st.iter().find(|x| x.0 == stage).map(|x| x.1))
+            .collect();
+        median(&mut v)
+    }
+}
+
+fn errors(off: &Image, img: &Image, e: f64) -> (f64, u64) {
+    let mut max = 0.0f64;
+    let mut above = 0u64;
+    for (a, b) in off.rgba.iter().zip(&img.rgba) {
+        let d = (0..4)
+            .map(|k| (a[k] - b[k]).abs() as f64)
+            .fold(0.0, f64::max);
+        max = max.max(d);
+        above += (d > e) as u64;
+    }
+    (max, above)
+}
+
+pub fn run(a: BenchArgs) -> Result<()> {
+    if a.views == 0 {
+        bail!("--views must be at least 1");
+    }
+    let mut tols: Vec<Option<f64>> = vec![None];
+    for t in a.tolerances.split(',').filter(|t| !t.trim().is_empty()) {
+        if let Some(e) = parse_tolerance(t.trim()).context("--tolerances")? {
+            tols.push(Some(e));
+        }
+    }
+    let base = a.sampling.params(&a.view, &a.particles)?;
+    let base_tf = a.view.base_tf()?;
+    let input = Input::open(&a.input)?;
+    let all = input.frames();
+    let frames: Vec<usize> = match &a.frames {
+        Some(f) => crate::render::parse_frames(f, all.len())?,
+        None => vec![0],
+    };
+    let spec = a.particles.spec()?;
+    let per_view = tols.len() + usize::from(!a.no_reference);
+    let pb = ProgressBar::new((frames.len() * a.views * per_view) as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} renders {msg}",
+        )
+        .unwrap(),
+    );
+    let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
+    let mut reference = Runs::default();
+    let mut setup = None;
+    let mut particles_n = 0;
+    for &fi in &frames {
+        let file = &all[fi].1;
+        let ds = read_dataset(file)?;
+        let particles = Particles::from_dataset(&ds, &spec)?;
+        particles_n = particles_n.max(particles.len());
+        if setup.is_none() {
+            setup = Some(a.view.setup(&particles, &base, &base_tf, false)?);
+        }
+        let (cam0, tf) = setup.as_ref().unwrap();
+        for v in 0..a.views {
+            let mut cam = cam0.clone();
+            cam.azimuth(360.0 * v as f64 / a.views as f64);
+            cam.orthogonalize_view_up();
+            pb.set_message(format!("frame {fi}, view {v}"));
+            if !a.no_reference {
+                let (_, s) = render_reference(&particles, &cam, tf, &base)
+                    .with_context(|| format!("rendering {}", file.display()))?;
+                reference.add(&s);
+                pb.inc(1);
+            }
+            let mut off_img: Option<Image> = None;
+            for (t, tol) in tols.iter().enumerate() {
+                let mut prm = base.clone();
+                prm.adaptive.tolerance = *tol;
+                let r = render_adaptive(&particles, None, &cam, tf, &prm)
+                    .with_context(|| format!("rendering {}", file.display()))?;
+                runs[t].add(&r.stats);
+                match (&off_img, tol) {
+                    (None, _) => off_img = Some(r.image),
+                    (Some(off), Some(e)) => {
+                        let (m, above) = errors(off, &r.image, *e);
+                        let rr = &mut runs[t];
+                        rr.max_err = rr.max_err.max(m);
+                        rr.above += above;
+                        rr.pixels += off.rgba.len() as u64;
+                        rr.views_above += usize::from(m > *e);
+                    }
+                    _ => {}
+                }
+                pb.inc(1);
+            }
+        }
+    }
+    pb.finish_and_clear();
+
+    let off_total = runs[0].median("total");
+    let off_rc = runs[0].median("raycast");
+    println!(
+        "{} ({} particles), {}x{}, {} view(s) x {} frame(s), D_xy {} D_z {}, relax {}, super-pixels {}, surface cells {}; medians in ms",
+        a.input.display(),
+        particles_n,
+        base.width,
+        base.height,
+        a.views,
+        frames.len(),
+        base.grid.bundle,
+        base.grid.depth_samples,
+        base.adaptive.relax,
+        base.adaptive.superpixels,
+        base.adaptive.surface_cells
+    );
+    println!(
+        "{:<10} {:>8} {:>8} {:>9} {:>9} {:>14} {:>10} {:>10} {:>10}",
+        "E_I",
+        "grid",
+        "adapt",
+        "raycast",
+        "total",
+        "speed-up RC/tot",
+        "max err",
+        "% px > E",
+        "views > E"
+    );
+    let mut rows = Vec::new();
+    if !a.no_reference {
+        let t = reference.median("total");
+        println!(
+            "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+            "reference",
+            reference.median("bin"),
+            "-",
+            reference.median("raycast"),
+            t,
+            format!("{:.2} (off: {:.2}x)", off_total / t, t / off_total),
+            "-",
+            "-",
+            "-"
+        );
+        rows.push(json!({"mode": "reference", "bin_ms": reference.median("bin"), "raycast_ms": reference.median("raycast"),
+                         "total_ms": t, "off_speedup_vs_reference": t / off_total}));
+    }
+    for (t, tol) in tols.iter().enumerate() {
+        let r = &runs[t];
+        let name = tol.map_or("off".to_string(), |e| e.to_string());
+        let (rc, tot) = (r.median("raycast"), r.median("total"));
+        let share = if r.pixels > 0 {
+            100.0 * r.above as f64 / r.pixels as f64
+        } else {
+            0.0
+        };
+        println!(
+            "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+            name,
+            r.median("grid"),
+            r.median("adapt"),
+            rc,
+            tot,
+            format!("{:.2} ({:.2})", off_rc / rc, off_total / tot),
+            if tol.is_some() {
+                format!("{:.5}", r.max_err)
+            } else {
+                "-".into()
+            },
+            if tol.is_some() {
+                format!("{share:.4}")
+            } else {
+                "-".into()
+            },
+            if tol.is_some() {
+                format!("{}/{}", r.views_above, r.stages.len())
+            } else {
+                "-".into()
+            },
+        );
+        rows.push(json!({"mode": "adaptive", "error_tolerance": tol, "grid_ms": r.median("grid"), "adapt_ms": r.median("adapt"),
+                         "raycast_ms": rc, "total_ms": tot, "speedup_raycast": off_rc / rc, "speedup_total": off_total / tot,
+                         "max_error": r.max_err, "percent_pixels_above": share, "views_above": r.views_above,
+                         "views": r.stages.len(), "samples": r.samples}));
+    }
+    if let Some(p) = &a.json {
+        let v = json!({"input": a.input, "particles": particles_n, "width": base.width, "height": base.height,
+                       "views": a.views, "frames": frames, "bundle": base.grid.bundle, "depth_samples": base.grid.depth_samples,
+                       "relax": base.adaptive.relax, "superpixels": base.adaptive.superpixels,
+                       "surface_cells": base.adaptive.surface_cells, "rows": rows});
+        std::fs::write(p, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}

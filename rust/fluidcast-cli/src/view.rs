@@ -1,0 +1,304 @@
+//! Options shared by `render` and `bench`: camera, image size, transfer function, and the
+//! renderer and its adaptive sampling.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use fluidcast_render::{GridParams, PlanParams, RenderParams};
+use fluidcast_sph::Particles;
+use fluidcast_view::{Camera, TransferFunction};
+
+use crate::options::ParticleArgs;
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct ViewArgs {
+    /// Camera JSON file (vtkCamera fields: position, focal_point, view_up, view_angle,
+    /// parallel_projection, parallel_scale) or `auto` (vtkRenderer::ResetCamera on the data,
+    /// looking down -z with y up).
+    #[arg(long, default_value = "auto")]
+    camera: String,
+    /// Rotate the camera about view up (degrees, as vtkCamera::Azimuth), after --camera.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    azimuth: f64,
+    /// Rotate the camera up/down about the focal point (degrees, as vtkCamera::Elevation).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    elevation: f64,
+    /// Zoom factor (> 1 zooms in, as vtkCamera::Zoom).
+    #[arg(long, default_value_t = 1.0)]
+    zoom: f64,
+    /// Use a parallel projection (for --camera auto).
+    #[arg(long)]
+    parallel: bool,
+    /// Write the camera used (JSON) here.
+    #[arg(long)]
+    save_camera: Option<PathBuf>,
+    /// Image size in pixels, WxH.
+    #[arg(long, default_value = "800x600")]
+    size: String,
+    /// Transfer function: a built-in preset (Cool to Warm, Viridis, Inferno, Grayscale) or a
+    /// ParaView colour-map preset .json file.
+    #[arg(long, default_value = "Viridis")]
+    tf: String,
+    /// Data range mapped onto the colour map, lo,hi (default: the first frame's value range).
+    #[arg(long, allow_hyphen_values = true)]
+    range: Option<String>,
+    /// Distance (world units) over which the transfer function's opacity applies, as
+    /// ParaView's Scalar Opacity Unit Distance. Default: bounds diagonal / cbrt(particles).
+    #[arg(long)]
+    opacity_unit_distance: Option<f64>,
+    /// Multiply the transfer function's opacities.
+    #[arg(long, default_value_t = 1.0)]
+    opacity_scale: f64,
+    /// Depth samples per pixel footprint (1 = the depth step equals the pixel footprint).
+    #[arg(long, default_value_t = 1.0)]
+    sampling_scale: f64,
+}
+
+/// Which renderer draws the image.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// The adaptive grid renderer (Hochstetter et al. 2016).
+    Adaptive,
+    /// The reference renderer (every particle of a tile scattered into every ray).
+    Reference,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct SamplingArgs {
+    /// Renderer.
+    #[arg(long, value_enum, default_value = "adaptive")]
+    pub mode: Mode,
+    /// Screen-space error tolerance E_I: the largest change, per colour or alpha channel
+    /// (0..1; 0.004 ≈ 1 level of 255), that adaptive sampling may make against full-rate
+    /// sampling of the same grid, or `off` for full rate everywhere.
+    #[arg(long, default_value = "0.004")]
+    pub error_tolerance: String,
+    /// Relaxation E_relax in [0, 1] (1: ignore the lateral variation inside cells when
+    /// estimating errors; 0: strict bound).
+    #[arg(long, default_value_t = 1.0, conflicts_with = "strict")]
+    pub relax: f64,
+    /// Never render cells as super-pixels.
+    #[arg(long)]
+    pub no_superpixels: bool,
+    /// Do not force cells with surface particles to full rate.
+    #[arg(long)]
+    pub no_surface_cells: bool,
+    /// Ray bundle size D_xy in pixels (1..=64).
+    #[arg(long, default_value_t = 8)]
+    pub bundle: u32,
+    /// Depth samples per cell D_z (a power of two, 1..=64).
+    #[arg(long, default_value_t = 16)]
+    pub depth_samples: u32,
+    /// Strict error bound: no relaxation and no super-pixels, so no pixel differs from the
+    /// full-rate rendering by more than E_I.
+    #[arg(long)]
+    pub strict: bool,
+}
+
+/// Parses `off` or a tolerance in [0, 1].
+pub fn parse_tolerance(s: &str) -> Result<Option<f64>> {
+    if s.eq_ignore_ascii_case("off") || s.eq_ignore_ascii_case("none") {
+        return Ok(None);
+    }
+    let e: f64 = s.trim().parse().with_context(|| {
+        format!("--error-tolerance '{s}': expected a number in [0, 1] or 'off'")
+    })?;
+    if !(0.0..=1.0).contains(&e) {
+        bail!("--error-tolerance {e}: must be in [0, 1] (or 'off')");
+    }
+    Ok(Some(e))
+}
+
+impl SamplingArgs {
+    /// Render parameters for an image size and the particle options.
+    pub fn params(&self, v: &ViewArgs, p: &ParticleArgs) -> Result<RenderParams> {
+        let (width, height) = parse_size(&v.size)?;
+        if !(0.0..=1.0).contains(&self.relax) {
+            bail!("--relax {}: must be in [0, 1]", self.relax);
+        }
+        let grid = GridParams {
+            bundle: self.bundle,
+            depth_samples: self.depth_samples,
+        };
+        grid.validate().context("--bundle/--depth-samples")?;
+        if !(v.sampling_scale.is_finite() && v.sampling_scale > 0.0) {
+            bail!(
+                "--sampling-scale {}: must be finite and > 0",
+                v.sampling_scale
+            );
+        }
+        let mut adaptive = PlanParams {
+            tolerance: parse_tolerance(&self.error_tolerance)?,
+            relax: self.relax,
+            superpixels: !self.no_superpixels,
+            surface_cells: !self.no_surface_cells,
+        };
+        if self.strict {
+            adaptive = adaptive.strict();
+        }
+        Ok(RenderParams {
+            width,
+            height,
+            kernel: p.kernel()?,
+            field: p.field()?,
+            sampling_scale: v.sampling_scale,
+            grid,
+            adaptive,
+            ..Default::default()
+        })
+    }
+}
+
+impl ViewArgs {
+    /// The transfer function as named, with --opacity-scale applied (range and unit distance
+    /// come from the data in [`ViewArgs::setup`]).
+    pub fn base_tf(&self) -> Result<TransferFunction> {
+        let mut tf = load_tf(&self.tf)?;
+        if !(self.opacity_scale.is_finite() && self.opacity_scale >= 0.0) {
+            bail!(
+                "--opacity-scale {}: must be finite and >= 0",
+                self.opacity_scale
+            );
+        }
+        tf.scale_opacity(self.opacity_scale);
+        Ok(tf)
+    }
+
+    /// Camera and transfer function for the data: the camera from --camera (or reset on the
+    /// data) with azimuth/elevation/zoom applied, the range from --range or the data, and the
+    /// opacity unit distance. Prints a summary line when `verbose`.
+    pub fn setup(
+        &self,
+        particles: &Particles,
+        params: &RenderParams,
+        base: &TransferFunction,
+        verbose: bool,
+    ) -> Result<(Camera, TransferFunction)> {
+        let a = self;
+        let mut tf = base.clone();
+        let mut cam = if a.camera == "auto" {
+            let (lo, hi) = particles.support_bounds();
+            let mut c = Camera {
+                parallel_projection: a.parallel,
+                ..Default::default()
+            };
+            c.reset(lo.map(f64::from), hi.map(f64::from));
+            c
+        } else {
+            let text = std::fs::read_to_string(&a.camera)
+                .with_context(|| format!("reading camera file {}", a.camera))?;
+            Camera::from_json(&text).with_context(|| format!("camera file {}", a.camera))?
+        };
+        cam.azimuth(a.azimuth);
+        cam.elevation(a.elevation);
+        cam.orthogonalize_view_up();
+        if !(a.zoom.is_finite() && a.zoom > 0.0) {
+            bail!("--zoom {}: must be > 0", a.zoom);
+        }
+        cam.zoom(a.zoom);
+        if let Some(p) = &a.save_camera {
+            std::fs::write(p, serde_json::to_string_pretty(&cam)?)
+                .with_context(|| format!("writing {}", p.display()))?;
+        }
+        let (lo, hi) = match &a.range {
+            Some(r) => parse_pair(r, "--range")?,
+            None => {
+                let (lo, hi) = match params.field {
+                    fluidcast_sph::FieldKind::Csph => {
+                        let r = particles.value_range();
+                        (r.0 as f64, r.1 as f64)
+                    }
+                    // For sums, map up to the typical field magnitude at a particle.
+                    _ => {
+                        let s = particles.sample_many(
+                            params.kernel,
+                            &particles
+                                .positions
+                                .iter()
+                                .step_by((particles.len() / 2000).max(1))
+                                .map(|p| p.map(f64::from))
+                                .collect::<Vec<_>>(),
+                        );
+                        let v: Vec<f64> = s.iter().filter_map(|s| s.value(params.field)).collect();
+                        (0.0, v.iter().copied().fold(0.0, f64::max))
+                    }
+                };
+                if lo < hi {
+                    (lo, hi)
+                } else {
+                    (lo - 0.5, lo + 0.5)
+                }
+            }
+        };
+        tf = tf.with_range(lo, hi)?;
+        tf.unit_distance = match a.opacity_unit_distance {
+            Some(u) if u.is_finite() && u > 0.0 => u,
+            Some(u) => bail!("--opacity-unit-distance {u}: must be finite and > 0"),
+            None => {
+                let (lo, hi) = particles.support_bounds();
+                let diag = (0..3)
+                    .map(|k| ((hi[k] - lo[k]) as f64).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                diag / (particles.len() as f64).cbrt()
+            }
+        };
+        if verbose {
+            eprintln!(
+                "rendering {} particles at {}x{}, {} kernel, field {:?}, range [{lo:.6}, {hi:.6}], opacity unit distance {:.6}",
+                particles.len(),
+                params.width,
+                params.height,
+                params.kernel,
+                params.field,
+                tf.unit_distance
+            );
+        }
+        Ok((cam, tf))
+    }
+}
+
+pub fn parse_pair(s: &str, what: &str) -> Result<(f64, f64)> {
+    let v: Vec<&str> = s.split(',').collect();
+    if v.len() != 2 {
+        bail!("{what} '{s}': expected two numbers, lo,hi");
+    }
+    Ok((
+        v[0].trim()
+            .parse()
+            .with_context(|| format!("{what} '{s}'"))?,
+        v[1].trim()
+            .parse()
+            .with_context(|| format!("{what} '{s}'"))?,
+    ))
+}
+
+pub fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size '{s}': expected WxH, e.g. 800x600"))?;
+    let w: u64 = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
+    let h: u64 = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
+    if w == 0
+        || h == 0
+        || w > fluidcast_render::MAX_SIDE as u64
+        || h > fluidcast_render::MAX_SIDE as u64
+    {
+        bail!(
+            "--size {w}x{h}: each side must be 1..={} pixels",
+            fluidcast_render::MAX_SIDE
+        );
+    }
+    Ok((w as u32, h as u32))
+}
+
+pub fn load_tf(spec: &str) -> Result<TransferFunction> {
+    let p = Path::new(spec);
+    if p.extension().map(|e| e.eq_ignore_ascii_case("json")) == Some(true) || p.exists() {
+        let text = std::fs::read_to_string(p)
+            .with_context(|| format!("reading transfer function {spec}"))?;
+        Ok(TransferFunction::from_paraview_json(&text, spec)?)
+    } else {
+        Ok(TransferFunction::preset(spec)?)
+    }
+}

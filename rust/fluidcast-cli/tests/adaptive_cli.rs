@@ -1,0 +1,147 @@
+//! The adaptive renderer's options from the command line, and `fluidcast bench`.
+use std::path::PathBuf;
+use std::process::Command;
+
+fn sample() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu")
+}
+
+fn run(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!err.contains("panicked"), "panic: {err}");
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).to_string(),
+        err,
+    )
+}
+
+fn render(out: &std::path::Path, extra: &[&str]) -> String {
+    let s = sample();
+    let mut args = vec![
+        "render",
+        s.to_str().unwrap(),
+        "--array",
+        "velocity:mag",
+        "--size",
+        "64x48",
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let (ok, _, err) = run(&args);
+    assert!(ok, "{extra:?}: {err}");
+    err
+}
+
+fn compare(a: &std::path::Path, b: &std::path::Path) -> f64 {
+    let (ok, out, err) = run(&[
+        "compare",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    v["max_abs"].as_f64().unwrap()
+}
+
+#[test]
+fn modes_agree_within_their_promises() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    render(&p("ref.exr"), &["--mode", "reference"]);
+    render(&p("off.exr"), &["--error-tolerance", "off"]);
+    render(
+        &p("strict.exr"),
+        &["--error-tolerance", "0.004", "--strict"],
+    );
+    render(&p("default.png"), &["--aovs"]);
+    render(&p("default.exr"), &[]);
+    assert!(compare(&p("ref.exr"), &p("off.exr")) <= 1e-5);
+    assert!(compare(&p("off.exr"), &p("strict.exr")) <= 0.004);
+    assert!(p("default.plan.png").exists() && p("default.error.png").exists());
+    let img = fluidcast_image_channels(&p("default.exr"));
+    for c in ["error_bound", "level", "superpixel"] {
+        assert!(img.contains(&c.to_string()), "{c} missing from {img:?}");
+    }
+}
+
+/// Channel names of an EXR (read through `compare`'s reader would drop them; read the
+/// header names from the file bytes instead).
+fn fluidcast_image_channels(p: &std::path::Path) -> Vec<String> {
+    let bytes = std::fs::read(p).unwrap();
+    ["error_bound", "level", "superpixel", "R", "Z"]
+        .iter()
+        .filter(|n| {
+            bytes
+                .windows(n.len() + 1)
+                .any(|w| &w[..n.len()] == n.as_bytes() && w[n.len()] == 0)
+        })
+        .map(|n| n.to_string())
+        .collect()
+}
+
+#[test]
+fn bad_adaptive_options_are_clear_errors() {
+    let d = tempfile::tempdir().unwrap();
+    let s = sample();
+    let o = d.path().join("o.png");
+    for (extra, msg) in [
+        (vec!["--error-tolerance", "2"], "must be in [0, 1]"),
+        (vec!["--error-tolerance", "fast"], "expected a number"),
+        (vec!["--depth-samples", "12"], "power of two"),
+        (vec!["--bundle", "0"], "bundle size"),
+        (vec!["--relax", "1.5"], "--relax"),
+    ] {
+        let mut args = vec![
+            "render",
+            s.to_str().unwrap(),
+            "-o",
+            o.to_str().unwrap(),
+            "--size",
+            "32x24",
+        ];
+        args.extend(extra.iter().copied());
+        let (ok, _, err) = run(&args);
+        assert!(!ok, "{extra:?} should fail");
+        assert!(err.contains(msg), "{extra:?}: {err}");
+    }
+}
+
+#[test]
+fn bench_prints_a_table_and_json() {
+    let d = tempfile::tempdir().unwrap();
+    let j = d.path().join("b.json");
+    let s = sample();
+    let (ok, out, err) = run(&[
+        "bench",
+        s.to_str().unwrap(),
+        "--array",
+        "velocity:mag",
+        "--size",
+        "48x36",
+        "--views",
+        "2",
+        "--tolerances",
+        "0.004",
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("reference") && out.contains("off") && out.contains("0.004"),
+        "{out}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&j).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    let adaptive = &rows[2];
+    assert_eq!(adaptive["views"], 2);
+    assert!(adaptive["total_ms"].as_f64().unwrap() > 0.0);
+    assert!(adaptive["max_error"].as_f64().unwrap() >= 0.0);
+}
