@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_image::Image;
+use fluidcast_image::{compare, Image};
 use fluidcast_io::{read_dataset, Input};
 use fluidcast_render::{render_adaptive, render_reference, RenderStats};
 use fluidcast_sph::Particles;
@@ -60,8 +60,8 @@ fn median(v: &mut [f64]) -> f64 {
 struct Runs {
     stages: Vec<Vec<(&'static str, f64)>>,
     max_err: f64,
-    above: u64,
-    pixels: u64,
+    /// Per view: share of pixels above E_I.
+    frac_above: Vec<f64>,
     views_above: usize,
     samples: u64,
 }
@@ -79,19 +79,6 @@ impl Runs {
             .collect();
         median(&mut v)
     }
-}
-
-fn errors(off: &Image, img: &Image, e: f64) -> (f64, u64) {
-    let mut max = 0.0f64;
-    let mut above = 0u64;
-    for (a, b) in off.rgba.iter().zip(&img.rgba) {
-        let d = (0..4)
-            .map(|k| (a[k] - b[k]).abs() as f64)
-            .fold(0.0, f64::max);
-        max = max.max(d);
-        above += (d > e) as u64;
-    }
-    (max, above)
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
@@ -155,12 +142,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 match (&off_img, tol) {
                     (None, _) => off_img = Some(r.image),
                     (Some(off), Some(e)) => {
-                        let (m, above) = errors(off, &r.image, *e);
+                        let (c, _) = compare(off, &r.image, *e)?;
                         let rr = &mut runs[t];
-                        rr.max_err = rr.max_err.max(m);
-                        rr.above += above;
-                        rr.pixels += off.rgba.len() as u64;
-                        rr.views_above += usize::from(m > *e);
+                        rr.max_err = rr.max_err.max(c.max_abs);
+                        rr.frac_above.push(c.frac_above);
+                        rr.views_above += usize::from(c.max_abs > *e);
                     }
                     _ => {}
                 }
@@ -220,10 +206,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let r = &runs[t];
         let name = tol.map_or("off".to_string(), |e| e.to_string());
         let (rc, tot) = (r.median("raycast"), r.median("total"));
-        let share = if r.pixels > 0 {
-            100.0 * r.above as f64 / r.pixels as f64
-        } else {
+        // Every view has the same pixel count, so the mean share is the overall share.
+        let share = if r.frac_above.is_empty() {
             0.0
+        } else {
+            100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len() as f64
         };
         println!(
             "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",

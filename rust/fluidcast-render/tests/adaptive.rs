@@ -10,7 +10,7 @@
 
 use std::path::PathBuf;
 
-use fluidcast_image::Image;
+use fluidcast_image::{compare, Image};
 use fluidcast_render::{render_adaptive, render_reference, GridParams, PlanParams, RenderParams};
 use fluidcast_sph::{
     FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
@@ -110,21 +110,14 @@ fn camera_for(p: &Particles, azimuth: f64, elevation: f64, parallel: bool) -> Ca
 }
 
 fn max_abs(a: &Image, b: &Image) -> f64 {
-    a.rgba
-        .iter()
-        .zip(&b.rgba)
-        .flat_map(|(x, y)| (0..4).map(move |k| (x[k] - y[k]).abs() as f64))
-        .fold(0.0, f64::max)
+    compare(a, b, 1.0).unwrap().0.max_abs
 }
 
-fn frac_above(a: &Image, b: &Image, e: f64) -> (usize, usize) {
-    let n = a
-        .rgba
-        .iter()
-        .zip(&b.rgba)
-        .filter(|(x, y)| (0..4).any(|k| ((x[k] - y[k]).abs() as f64) > e))
-        .count();
-    (n, a.rgba.len())
+/// Pixels of `b` further than `e` from `a` in some channel, and the pixel count.
+fn count_above(a: &Image, b: &Image, e: f64) -> (u64, u64) {
+    let n = a.rgba.len() as u64;
+    let c = compare(a, b, e).unwrap().0;
+    ((c.frac_above * n as f64).round() as u64, n)
 }
 
 fn params(w: u32, h: u32, tolerance: Option<f64>) -> RenderParams {
@@ -300,9 +293,9 @@ fn check_scene(name: &str, p: &Particles, tf: &TransferFunction, size: (u32, u32
                 &params(size.0, size.1, Some(e)),
             )
             .unwrap();
-            let (a, t) = frac_above(&off.image, &r.image, e);
-            above += a as u64;
-            total += t as u64;
+            let (a, t) = count_above(&off.image, &r.image, e);
+            above += a;
+            total += t;
         }
     }
     (above, total)
