@@ -22,7 +22,8 @@
 //!   of Orthmann et al. 2013). A
 //!   *surface cell* references a surface particle and has a coverage gap (some of its rays
 //!   may leave the fluid inside it); it keeps level 0 and is never a super-pixel. Cells that
-//!   merely touch surface particles but are covered throughout adapt like bulk cells.
+//!   merely touch surface particles but are covered throughout adapt like bulk cells. Only
+//!   relaxed plans use the rule ([`PlanParams::uses_surface_cells`]); strict bounds need none.
 //! * Only cells with the same chosen level are merged, so merged cells sample exactly the
 //!   planned positions (the paper also merges a cell into a coarser neighbour at its finer
 //!   level) and the bound stays a bound.
@@ -79,6 +80,13 @@ impl Default for PlanParams {
 }
 
 impl PlanParams {
+    /// True when surface particles matter: an adaptive, relaxed plan with the surface rule
+    /// on. Unrelaxed bounds already include "no particle" wherever a ray may leave the fluid,
+    /// so the strict mode needs no surface test.
+    pub fn uses_surface_cells(&self) -> bool {
+        self.tolerance.is_some() && self.surface_cells && self.relax > 0.0
+    }
+
     /// The strict mode: no relaxation and no super-pixels, so the bound is a guarantee.
     pub fn strict(mut self) -> Self {
         self.relax = 0.0;
@@ -138,6 +146,19 @@ pub struct PlanStats {
     pub merged_cells: u64,
     /// Particle references the ray caster reads (after merging removed repeats).
     pub refs_sampled: u64,
+}
+
+impl PlanStats {
+    fn add(&mut self, o: &PlanStats) {
+        self.cells += o.cells;
+        for (a, b) in self.level_cells.iter_mut().zip(&o.level_cells) {
+            *a += b;
+        }
+        self.superpixel_cells += o.superpixel_cells;
+        self.surface_cells += o.surface_cells;
+        self.merged_cells += o.merged_cells;
+        self.refs_sampled += o.refs_sampled;
+    }
 }
 
 /// The sampling plan for one view.
@@ -214,15 +235,7 @@ impl SamplingPlan {
                 plan.plan_bounds.push(bp.plan);
                 plan.summaries.push(bp.summary);
             }
-            let s = &mut plan.stats;
-            s.cells += bp.stats.cells;
-            for l in 0..LEVELS {
-                s.level_cells[l] += bp.stats.level_cells[l];
-            }
-            s.superpixel_cells += bp.stats.superpixel_cells;
-            s.surface_cells += bp.stats.surface_cells;
-            s.merged_cells += bp.stats.merged_cells;
-            s.refs_sampled += bp.stats.refs_sampled;
+            plan.stats.add(&bp.stats);
         }
         Ok(plan)
     }
@@ -497,7 +510,7 @@ fn plan_bundle(
             }
             relaxed[c][l] = r;
         }
-        let is_surface = params.surface_cells
+        let is_surface = params.uses_surface_cells()
             && gappy
             && surface.is_some_and(|s| {
                 grid.refs[cell.start as usize..cell.end as usize]

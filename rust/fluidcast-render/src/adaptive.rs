@@ -65,9 +65,7 @@ pub fn render_adaptive(
     let computed;
     let surface = match surface {
         Some(s) => Some(s),
-        // Strict bounds already account for rays leaving the fluid; only relaxed
-        // estimates need the surface test.
-        None if a.tolerance.is_some() && a.surface_cells && a.relax > 0.0 => {
+        None if a.uses_surface_cells() => {
             computed = particles.surface_flags(SURFACE_THRESHOLD);
             Some(computed.as_slice())
         }
