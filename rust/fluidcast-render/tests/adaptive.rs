@@ -18,29 +18,8 @@ use fluidcast_sph::{
 use fluidcast_view::{Camera, TransferFunction};
 use proptest::prelude::*;
 
-fn rng(seed: u32) -> impl FnMut() -> f32 {
-    let mut s = seed.max(1);
-    move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s as f32 / u32::MAX as f32
-    }
-}
-
-fn cloud(n: usize, seed: u32) -> Particles {
-    let mut rnd = rng(seed);
-    let mut p = Particles::default();
-    for _ in 0..n {
-        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
-        p.positions.push(x);
-        p.radii.push(0.15 + 0.1 * rnd());
-        p.volumes.push(0.002 * (0.5 + rnd()));
-        p.masses.push(1.0 + rnd());
-        p.values.push(x[0] + 2.0 * x[1] * x[1]);
-    }
-    p
-}
+mod common;
+use common::{cloud, rng};
 
 /// The paper's radial concentration (Fig. 3): a jittered block of fluid whose value grows
 /// with the distance from one corner.

@@ -1,26 +1,8 @@
+mod common;
+use common::cloud;
 use fluidcast_render::{render_reference, RenderParams, SampleDepths};
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
-
-fn cloud(n: usize, seed: u32) -> Particles {
-    let mut s = seed;
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s as f32 / u32::MAX as f32
-    };
-    let mut p = Particles::default();
-    for _ in 0..n {
-        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
-        p.positions.push(x);
-        p.radii.push(0.15 + 0.1 * rnd());
-        p.volumes.push(0.002 * (0.5 + rnd()));
-        p.masses.push(1.0 + rnd());
-        p.values.push(x[0] + 2.0 * x[1] * x[1]);
-    }
-    p
-}
 
 /// Independent oracle: world-space rays from the camera, every particle at every sample.
 fn brute_force(
