@@ -57,7 +57,7 @@ fn compare(a: CompareArgs) -> Result<()> {
     let ib = fluidcast_image::Image::read(&a.b)?;
     let (c, diff) = fluidcast_image::compare(&ia, &ib, a.tolerance)?;
     if let Some(d) = &a.diff {
-        diff.save(d, [0.0; 3])
+        diff.save(d, [0.0; 3], fluidcast_image::PngEncoding::Vtk)
             .with_context(|| format!("writing {}", d.display()))?;
     }
     if a.json {

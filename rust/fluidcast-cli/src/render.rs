@@ -17,7 +17,8 @@ use crate::view::{Mode, SamplingArgs, ViewArgs};
 pub struct RenderArgs {
     /// A .vtu, .vtp, legacy .vtk file, or a .pvd series.
     input: PathBuf,
-    /// Output image: .png (8-bit sRGB over --background) or .exr (float RGBA premultiplied + Z).
+    /// Output image: .png (8-bit over --background, colour values written as VTK and ParaView
+    /// write them; see --srgb) or .exr (float RGBA premultiplied + Z).
     /// For several frames, a pattern such as out_%04d.png (the frame index).
     #[arg(short, long)]
     output: PathBuf,
@@ -27,9 +28,13 @@ pub struct RenderArgs {
     view: ViewArgs,
     #[command(flatten)]
     sampling: SamplingArgs,
-    /// Background colour (linear RGB, 0..1) for PNG output.
+    /// Background colour (RGB, 0..1) for PNG output.
     #[arg(long, default_value = "1,1,1")]
     background: String,
+    /// Encode PNG output with the sRGB transfer curve, treating colours as linear light. By
+    /// default colours are written as they are, like a VTK/ParaView screenshot.
+    #[arg(long)]
+    srgb: bool,
     /// Frames of a .pvd series, START:END (end exclusive), START:END:STEP or one index.
     #[arg(long)]
     frames: Option<String>,
@@ -99,7 +104,7 @@ fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<(
     }
     for (img, suffix) in [(plan, "plan"), (errimg, "error")] {
         let p = PathBuf::from(format!("{}.{suffix}.png", stem.display()));
-        img.write_png(&p, [1.0; 3])
+        img.write_png(&p, [1.0; 3], fluidcast_image::PngEncoding::Vtk)
             .with_context(|| format!("writing {}", p.display()))?;
         eprintln!("wrote {}", p.display());
     }
@@ -198,6 +203,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
         [v[0], v[1], v[2]]
     };
+    let png_encoding = if a.srgb {
+        fluidcast_image::PngEncoding::Srgb
+    } else {
+        fluidcast_image::PngEncoding::Vtk
+    };
     let input = Input::open(&a.input)?;
     let all = input.frames();
     let frames: Vec<usize> = match (&a.frames, &input) {
@@ -278,7 +288,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         let t_write = Instant::now();
         image
-            .save(&out, background)
+            .save(&out, background, png_encoding)
             .with_context(|| format!("writing {}", out.display()))?;
         if a.aovs {
             write_aov_pngs(&image, &out, params.adaptive.tolerance)?;

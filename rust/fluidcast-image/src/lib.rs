@@ -9,6 +9,19 @@ use exr::prelude::{
     AnyChannel, AnyChannels, Encoding, FlatSamples, Layer, LayerAttributes, SmallVec, WritableImage,
 };
 
+/// How 8-bit PNG values are made from the composited colour.
+///
+/// VTK and ParaView write the composited colour straight into the 8-bit window (a colour
+/// map's RGB values are display values), so [`PngEncoding::Vtk`] — the default — gives the
+/// same bytes a ParaView screenshot has for the same colour map. [`PngEncoding::Srgb`]
+/// treats colours as linear light and applies the sRGB transfer curve (brighter mid-tones).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PngEncoding {
+    #[default]
+    Vtk,
+    Srgb,
+}
+
 /// An image problem, naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
@@ -59,11 +72,17 @@ impl Image {
         j as usize * self.width as usize + i as usize
     }
 
-    /// Writes by extension: `.exr` (float RGBA + Z) or `.png` (8-bit sRGB over `background`).
-    pub fn save(&self, path: &Path, background: [f32; 3]) -> Result<(), ImageError> {
+    /// Writes by extension: `.exr` (float RGBA + Z) or `.png` (8-bit over `background`,
+    /// encoded as `png`).
+    pub fn save(
+        &self,
+        path: &Path,
+        background: [f32; 3],
+        png: PngEncoding,
+    ) -> Result<(), ImageError> {
         match ext(path).as_str() {
             "exr" => self.write_exr(path),
-            "png" => self.write_png(path, background),
+            "png" => self.write_png(path, background, png),
             _ => Err(ImageError::Format(path.to_path_buf())),
         }
     }
@@ -95,9 +114,14 @@ impl Image {
             .map_err(|e| ferr(path, e))
     }
 
-    /// Composites over `background` (linear RGB) and writes 8-bit sRGB PNG (RGB).
-    pub fn write_png(&self, path: &Path, background: [f32; 3]) -> Result<(), ImageError> {
-        let data = self.to_srgb8(background);
+    /// Composites over `background` and writes an 8-bit RGB PNG.
+    pub fn write_png(
+        &self,
+        path: &Path,
+        background: [f32; 3],
+        encoding: PngEncoding,
+    ) -> Result<(), ImageError> {
+        let data = self.to_rgb8(background, encoding);
         let f = std::fs::File::create(path).map_err(|e| ferr(path, e))?;
         let mut enc = png::Encoder::new(std::io::BufWriter::new(f), self.width, self.height);
         enc.set_color(png::ColorType::Rgb);
@@ -106,20 +130,25 @@ impl Image {
         w.write_image_data(&data).map_err(|e| ferr(path, e))
     }
 
-    /// 8-bit sRGB RGB bytes over a background.
-    pub fn to_srgb8(&self, background: [f32; 3]) -> Vec<u8> {
+    /// 8-bit RGB bytes: the colour composited over `background`, then encoded.
+    pub fn to_rgb8(&self, background: [f32; 3], encoding: PngEncoding) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.rgba.len() * 3);
         for p in &self.rgba {
             for k in 0..3 {
-                let c = p[k] + (1.0 - p[3]) * background[k];
-                out.push((linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0).round() as u8);
+                let c = (p[k] + (1.0 - p[3]) * background[k]).clamp(0.0, 1.0);
+                let e = match encoding {
+                    PngEncoding::Vtk => c,
+                    PngEncoding::Srgb => linear_to_srgb(c),
+                };
+                out.push((e * 255.0).round() as u8);
             }
         }
         out
     }
 
     /// Reads an EXR written by [`Image::write_exr`] (R, G, B, A, optional Z) or a PNG
-    /// (8-bit or 16-bit; sRGB decoded to linear, opaque when it has no alpha).
+    /// (8-bit or 16-bit; values taken as stored, in 0..1, with no transfer curve undone —
+    /// the convention of [`PngEncoding::Vtk`]; opaque when it has no alpha).
     pub fn read(path: &Path) -> Result<Image, ImageError> {
         match ext(path).as_str() {
             "exr" => {
@@ -163,7 +192,7 @@ impl Image {
                     .iter_mut()
                     .zip(buf[..info.buffer_size()].chunks_exact(nc))
                 {
-                    let g = |k: usize| srgb_to_linear(px[k] as f32 / 255.0);
+                    let g = |k: usize| px[k] as f32 / 255.0;
                     *p = match nc {
                         1 => [g(0), g(0), g(0), 1.0],
                         2 => [g(0), g(0), g(0), px[1] as f32 / 255.0],
@@ -191,15 +220,6 @@ pub fn linear_to_srgb(c: f32) -> f32 {
         12.92 * c
     } else {
         1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// Inverse of [`linear_to_srgb`].
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.040_45 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -274,8 +294,13 @@ mod tests {
         assert!((cmp.max_abs - 0.1).abs() < 1e-7);
         assert!((cmp.frac_above - 1.0 / 15.0).abs() < 1e-12);
         let png = dir.join("a.png");
-        a.write_png(&png, [0.0; 3]).unwrap();
+        // Over black, premultiplied 0.5 is stored as 128 (VTK's convention: no curve) and
+        // as 188 with the sRGB curve.
+        a.write_png(&png, [0.0; 3], PngEncoding::Vtk).unwrap();
         let r = Image::read(&png).unwrap();
-        assert!((r.rgba[a.index(4, 2)][1] - 0.5).abs() < 0.01);
+        assert_eq!(r.rgba[a.index(4, 2)][1], 128.0 / 255.0);
+        a.write_png(&png, [0.0; 3], PngEncoding::Srgb).unwrap();
+        let r = Image::read(&png).unwrap();
+        assert_eq!(r.rgba[a.index(4, 2)][1], 188.0 / 255.0);
     }
 }
