@@ -1,6 +1,7 @@
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -8,6 +9,11 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "data"
 BIN = ROOT / "target" / "debug" / "fluidcast"
+
+# The examples' helper module (cameras, transfer functions, VTK's SPH pipeline) is shared
+# with the tests; it must run the binary scripts/test.sh just built, not a stale release one.
+os.environ["FLUIDCAST_BIN"] = str(BIN)
+sys.path.insert(0, str(ROOT / "examples"))
 
 
 def fluidcast(*args, check=True):

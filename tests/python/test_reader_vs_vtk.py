@@ -64,13 +64,16 @@ def compare_file(path, tmp_path):
     np.savetxt(csv, pts[pick], delimiter=",", fmt="%.17g")
     for name, arr in vtk_arrays.items():
         a = arr.astype(np.float64).reshape(len(pts), -1)
-        sel = f"{name}:0" if a.shape[1] > 1 else name
-        out = tmp_path / "v.csv"
-        fluidcast("probe", path, "--points", csv, "-o", out, "--array", sel, "--support-radius", "1e-6", "--uniform-volume")
-        got = np.genfromtxt(out, delimiter=",", skip_header=1)[:, 3]
-        # Particles hold single precision (the renderer's layout): exact for Float32 and
-        # integer arrays below 2^24, within f32 rounding for Float64.
-        np.testing.assert_allclose(got, a[pick, 0], rtol=1e-6, atol=0, err_msg=f"{path.name}: {name}")
+        for k in range(a.shape[1]):
+            sel = f"{name}:{k}" if a.shape[1] > 1 else name
+            out = tmp_path / "v.csv"
+            fluidcast("probe", path, "--points", csv, "-o", out, "--array", sel,
+                      "--support-radius", "1e-6", "--uniform-volume")
+            got = np.genfromtxt(out, delimiter=",", skip_header=1)[:, 3]
+            # Particles hold single precision (the renderer's layout): exact for Float32 and
+            # integer arrays below 2^24, within f32 rounding for Float64.
+            np.testing.assert_allclose(got, a[pick, k], rtol=1e-6, atol=0,
+                                       err_msg=f"{path.name}: {sel}")
 
 
 @pytest.mark.parametrize("path", files_to_check(), ids=lambda p: p.name)
