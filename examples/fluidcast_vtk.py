@@ -205,6 +205,29 @@ def preset_to_vtk(preset) -> tuple[vtk.vtkColorTransferFunction, vtk.vtkPiecewis
     return ctf, otf
 
 
+def rescaled(ctf, otf, lo: float, hi: float):
+    """Copies of ``ctf`` and ``otf`` with their nodes moved linearly from the colour
+    function's range onto [lo, hi] (ParaView's "Rescale to data range")."""
+    a, b = ctf.GetRange()
+    s = (hi - lo) / (b - a) if b > a else 1.0
+
+    def x(v):
+        return lo + (v - a) * s
+
+    c = vtk.vtkColorTransferFunction()
+    c.SetColorSpace(ctf.GetColorSpace())
+    for i in range(ctf.GetSize()):
+        n = [0.0] * 6
+        ctf.GetNodeValue(i, n)
+        c.AddRGBPoint(x(n[0]), *n[1:])
+    o = vtk.vtkPiecewiseFunction()
+    for i in range(otf.GetSize()):
+        n = [0.0] * 4
+        otf.GetNodeValue(i, n)
+        o.AddPoint(x(n[0]), *n[1:])
+    return c, o
+
+
 def matplotlib_tf(cmap: str, lo: float, hi: float, opacity: list[float],
                   n: int = 32) -> tuple[vtk.vtkColorTransferFunction, vtk.vtkPiecewiseFunction]:
     """A colour map by matplotlib name (as pyvista's ``cmap=``) sampled at ``n`` nodes over
