@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Runs every test: the Rust workspace, then the Python tests that hold fluidcast against
-# VTK itself (reader, vtkSPHInterpolator). Sets up .venv/ first (idempotent).
+# VTK itself (reader, vtkSPHInterpolator, camera, transfer function, VTK's volume rendering
+# of the resampled field). Installs missing system packages and sets up .venv/ first
+# (both idempotent).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
+bash scripts/setup_system.sh
 bash scripts/setup_python.sh
 cargo build --bin fluidcast
 cargo test --workspace
