@@ -9,20 +9,10 @@ import pytest
 import vtk
 from vtk.util import numpy_support as ns
 
+import fluidcast_vtk as fv
 from conftest import fluidcast, shared
 
-KERNELS = {
-    "cubic": (vtk.vtkSPHCubicKernel, 2.0),
-    "quintic": (vtk.vtkSPHQuinticKernel, 3.0),
-    "wendland-c2": (vtk.vtkWendlandQuinticKernel, 2.0),
-}
-
-
-def read(path):
-    r = vtk.vtkXMLUnstructuredGridReader()
-    r.SetFileName(str(path))
-    r.Update()
-    return r.GetOutput()
+KERNELS = fv.VTK_KERNELS  # fluidcast kernel name -> (VTK kernel class, H / h)
 
 
 def vtk_interpolate(ds, probe_pts, kernel, support, shepard, array):
@@ -54,7 +44,7 @@ def vtk_interpolate(ds, probe_pts, kernel, support, shepard, array):
 @pytest.mark.parametrize("shepard", [True, False])
 def test_field_matches_vtk_sph_interpolator(kernel, shepard, tmp_path):
     path = shared("splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu")
-    ds = read(path)
+    ds = fv.read_points(path)
     pts = ns.vtk_to_numpy(ds.GetPoints().GetData()).astype(np.float64)
     rng = np.random.default_rng(3)
     # Probe near particles (inside the fluid), offset by up to one spacing.
