@@ -105,7 +105,12 @@ def run(a) -> dict:
         raise SystemExit(f"{path}: no such file")
     out = a.out
     out.mkdir(parents=True, exist_ok=True)
-    w, h = (int(x) for x in a.size.lower().split("x"))
+    try:
+        w, h = (int(x) for x in a.size.lower().split("x"))
+    except ValueError:
+        raise SystemExit(f"--size '{a.size}': expected WxH, e.g. 800x600")
+    if not (0 < w <= 16384 and 0 < h <= 16384):
+        raise SystemExit(f"--size '{a.size}': each side must be 1..16384 pixels")
     size = (w, h)
     background = numbers(a.background, 3, "--background")
     binary = fv.fluidcast_binary()
@@ -279,7 +284,9 @@ def main(argv=None):
     a = parse_args(argv)
     try:
         run(a)
-    except (ValueError, KeyError, RuntimeError, subprocess.CalledProcessError) as e:
+    except KeyError as e:
+        raise SystemExit(f"compare_vtk: {a.data}: {e.args[0]}")
+    except (ValueError, RuntimeError, OSError, subprocess.CalledProcessError) as e:
         raise SystemExit(f"compare_vtk: {e}")
 
 

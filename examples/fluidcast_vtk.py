@@ -261,7 +261,8 @@ def read_points(path: Path) -> vtk.vtkPointSet:
     r.Update()
     ds = r.GetOutput()
     if ds is None or ds.GetNumberOfPoints() == 0:
-        raise ValueError(f"{path}: no points")
+        raise ValueError(f"{path}: VTK's reader found no points (empty, truncated or not a "
+                         f"{path.suffix} file)")
     return ds
 
 
