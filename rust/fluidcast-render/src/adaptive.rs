@@ -92,11 +92,14 @@ pub fn render_adaptive(
                 |(sums, local), b| {
                     let bd = grid.bundle(b);
                     let [x0, x1, y0, y1] = bd.pixels;
-                    let rays: Vec<Ray> = (y0..y1)
-                        .flat_map(|j| (x0..x1).map(move |i| (i, j)))
+                    let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
+                    let rays: Vec<Ray> = pixels
+                        .clone()
                         .map(|(i, j)| Ray::through_pixel(&frame, i, j))
                         .collect();
-                    let mut comps = vec![Compositor::new(); rays.len()];
+                    let mut comps: Vec<Compositor> = pixels
+                        .map(|(i, j)| Compositor::new(params.depth_limit_at(i, j)))
+                        .collect();
                     let mut zs = [0.0f64; 65];
                     for span in plan.bundle_spans(b) {
                         if comps.iter().all(|c| c.done) {
@@ -106,8 +109,9 @@ pub fn render_adaptive(
                         let k0 = grid.cells[first].z as usize * dz;
                         if let Some(sp) = span.superpixel {
                             let it = sp.map(f64::from);
+                            let z = (depths.z[k0], depths.z[k0 + span.count as usize * dz]);
                             for c in comps.iter_mut().filter(|c| !c.done) {
-                                c.add(it, depths.z[k0], params.min_transmittance);
+                                c.add(it, z, params.min_transmittance);
                             }
                             continue;
                         }
@@ -131,8 +135,8 @@ pub fn render_adaptive(
                                 .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
                             for m in lo..hi {
                                 if let Some(q) = sums.value(m, params.field) {
-                                    let ds = (zs[m + 1] - zs[m]) * ray.dlen;
-                                    c.sample(tf, q, ds, zs[m], params.min_transmittance);
+                                    let z = (zs[m], zs[m + 1]);
+                                    c.sample(tf, q, z, ray.dlen, params.min_transmittance);
                                     if c.done {
                                         break;
                                     }

@@ -21,6 +21,7 @@ mod adaptive;
 mod raycast;
 mod reference;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 pub use adaptive::{render_adaptive, AdaptiveRender, SURFACE_THRESHOLD};
@@ -52,6 +53,22 @@ pub struct RenderParams {
     pub grid: GridParams,
     /// Error tolerance and the optimisations of the adaptive renderer.
     pub adaptive: PlanParams,
+    /// Per pixel (row 0 at the top, `width × height` values), the view depth of opaque
+    /// geometry drawn before the particles (a VTK depth buffer turned into view depth): each
+    /// ray stops there, the last step cut at it, so a volume behind a surface is hidden and
+    /// one in front covers it. `+∞` where there is none; `None` for no geometry at all.
+    pub depth_limit: Option<Arc<[f32]>>,
+}
+
+impl RenderParams {
+    /// The view depth at which pixel (i, j)'s ray stops (`+∞` without a depth limit).
+    #[inline]
+    pub fn depth_limit_at(&self, i: u32, j: u32) -> f64 {
+        match &self.depth_limit {
+            Some(d) => d[j as usize * self.width as usize + i as usize] as f64,
+            None => f64::INFINITY,
+        }
+    }
 }
 
 impl Default for RenderParams {
@@ -65,6 +82,7 @@ impl Default for RenderParams {
             min_transmittance: 1e-4,
             grid: GridParams::default(),
             adaptive: PlanParams::default(),
+            depth_limit: None,
         }
     }
 }
@@ -82,6 +100,10 @@ pub enum RenderError {
     Plan(#[from] PlanError),
     #[error("minimum transmittance {0} must be in [0, 1)")]
     MinTransmittance(f64),
+    #[error("depth limit has {0} values for a {1}x{2} image")]
+    DepthLimitSize(usize, u32, u32),
+    #[error("depth limit holds NaN or a negative depth")]
+    DepthLimitValue,
 }
 
 /// Timings and counts of one rendering.
@@ -130,5 +152,13 @@ fn validate(params: &RenderParams) -> Result<(), RenderError> {
         return Err(GridError::SamplingScale(params.sampling_scale).into());
     }
     params.grid.validate()?;
+    if let Some(d) = &params.depth_limit {
+        if d.len() != w as usize * h as usize {
+            return Err(RenderError::DepthLimitSize(d.len(), w, h));
+        }
+        if d.iter().any(|z| !(*z >= 0.0)) {
+            return Err(RenderError::DepthLimitValue);
+        }
+    }
     Ok(())
 }

@@ -71,7 +71,8 @@ impl Sums {
 }
 
 /// Front-to-back compositing state of one ray: premultiplied colour, transmittance and the
-/// depth where opacity first exceeded ½.
+/// depth where opacity first exceeded ½. Nothing at or beyond `limit` (view depth of an
+/// opaque surface in front of the particles' far end) is composited.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Compositor {
     pub color: [f64; 3],
@@ -79,37 +80,74 @@ pub(crate) struct Compositor {
     pub depth: f32,
     pub samples: u64,
     pub done: bool,
+    pub limit: f64,
 }
 
 impl Compositor {
-    pub fn new() -> Compositor {
+    /// A fresh ray that ends at view depth `limit` (`f64::INFINITY`: no opaque surface).
+    pub fn new(limit: f64) -> Compositor {
         Compositor {
             color: [0.0; 3],
             trans: 1.0,
             depth: f32::INFINITY,
             samples: 0,
             done: false,
+            limit,
         }
     }
 
-    /// Composites a sample of value `q` over a step of world length `ds` at depth `z`.
+    /// Composites a sample of value `q` standing for the step from view depth `z0` to `z1`
+    /// (`dlen` world units per unit of view depth along this ray); a step that reaches past
+    /// the limit is cut there.
     #[inline]
-    pub fn sample(&mut self, tf: &TransferFunction, q: f64, ds: f64, z: f64, min_t: f64) {
+    pub fn sample(
+        &mut self,
+        tf: &TransferFunction,
+        q: f64,
+        (z0, z1): (f64, f64),
+        dlen: f64,
+        min_t: f64,
+    ) {
+        if z0 >= self.limit {
+            self.done = true;
+            return;
+        }
         let (rgb, alpha) = tf.eval(q);
-        let a = tf.step_alpha(alpha, ds);
+        let a = tf.step_alpha(alpha, (z1.min(self.limit) - z0) * dlen);
         self.samples += 1;
-        self.add([a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a], z, min_t);
+        self.add(
+            [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
+            (z0, z1),
+            min_t,
+        );
     }
 
-    /// Composites a premultiplied (I rgb, T) segment starting at depth `z`.
+    /// Composites a premultiplied (I rgb, T) segment from view depth `z0` to `z1`. Past the
+    /// limit it is cut as a homogeneous segment would be: T^f and I (1 − T^f)/(1 − T) for
+    /// the fraction f in front of the limit.
     #[inline]
-    pub fn add(&mut self, it: [f64; 4], z: f64, min_t: f64) {
+    pub fn add(&mut self, mut it: [f64; 4], (z0, z1): (f64, f64), min_t: f64) {
+        if z0 >= self.limit {
+            self.done = true;
+            return;
+        }
+        if z1 > self.limit {
+            let f = (self.limit - z0) / (z1 - z0);
+            let t = it[3].powf(f);
+            let s = if it[3] < 1.0 {
+                (1.0 - t) / (1.0 - it[3])
+            } else {
+                f
+            };
+            it = [it[0] * s, it[1] * s, it[2] * s, t];
+            self.done = true;
+        }
         for (c, i) in self.color.iter_mut().zip(it) {
             *c += self.trans * i;
         }
         self.trans *= it[3];
         if self.trans < 0.5 && self.depth.is_infinite() {
-            self.depth = z as f32;
+            self.depth = z0 as f32;
         }
         if self.trans < min_t {
             self.done = true;

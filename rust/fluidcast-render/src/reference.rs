@@ -86,11 +86,11 @@ pub fn render_reference(
                         .iter()
                         .filter_map(|p| sums.scatter(&ray, p, zs, params.kernel))
                         .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
-                    let mut comp = Compositor::new();
+                    let mut comp = Compositor::new(params.depth_limit_at(i, j));
                     for k in lo..hi {
                         if let Some(q) = sums.value(k, params.field) {
-                            let ds = (depths.z[k + 1] - depths.z[k]) * ray.dlen;
-                            comp.sample(tf, q, ds, depths.z[k], params.min_transmittance);
+                            let z = (depths.z[k], depths.z[k + 1]);
+                            comp.sample(tf, q, z, ray.dlen, params.min_transmittance);
                             if comp.done {
                                 break;
                             }

@@ -111,20 +111,8 @@ fn uniform_slab_transmittance_is_exponential() {
     // A lattice slab with a constant attribute: the CSPH field is constant (exactly)
     // wherever a particle reaches, i.e. on the central ray from z = -H to d + H.
     let (spacing, h) = (0.05f32, 0.1f32);
-    let mut p = Particles::default();
     let nz = 9; // z = 0 .. 0.4
-    for i in -6..=6 {
-        for j in -6..=6 {
-            for k in 0..nz {
-                p.positions
-                    .push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
-                p.radii.push(h);
-                p.volumes.push(spacing.powi(3));
-                p.masses.push(1.0);
-                p.values.push(0.7);
-            }
-        }
-    }
+    let p = common::slab(nz);
     let thickness = (nz - 1) as f64 * spacing as f64 + 2.0 * h as f64;
     let cam = Camera {
         position: [0.0, 0.0, 3.0],

@@ -29,3 +29,24 @@ pub fn cloud(n: usize, seed: u32) -> Particles {
     }
     p
 }
+
+/// A lattice slab of (2·6+1)² × `nz` particles, spacing 0.05, support radius 0.1, value 0.7,
+/// filling z = 0 .. (nz−1)·0.05. The CSPH field is exactly 0.7 wherever a particle reaches:
+/// on the central ray from z = −0.1 to (nz−1)·0.05 + 0.1.
+pub fn slab(nz: usize) -> Particles {
+    let (spacing, h) = (0.05f32, 0.1f32);
+    let mut p = Particles::default();
+    for i in -6..=6 {
+        for j in -6..=6 {
+            for k in 0..nz {
+                p.positions
+                    .push([i as f32 * spacing, j as f32 * spacing, k as f32 * spacing]);
+                p.radii.push(h);
+                p.volumes.push(spacing.powi(3));
+                p.masses.push(1.0);
+                p.values.push(0.7);
+            }
+        }
+    }
+    p
+}

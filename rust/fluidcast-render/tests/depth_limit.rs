@@ -1,0 +1,173 @@
+//! Rays stop at opaque geometry: `RenderParams::depth_limit`.
+mod common;
+use std::sync::Arc;
+
+use common::{cloud, slab};
+use fluidcast_render::{render_adaptive, render_reference, PlanParams, RenderParams};
+use fluidcast_view::{Camera, TransferFunction};
+
+fn slab_scene() -> (Camera, TransferFunction, f64) {
+    let cam = Camera {
+        position: [0.0, 0.0, 3.0],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        parallel_projection: true,
+        parallel_scale: 0.002,
+        ..Default::default()
+    };
+    let alpha = 0.4;
+    let mut tf = TransferFunction::preset("grayscale")
+        .unwrap()
+        .with_range(0.0, 1.0)
+        .unwrap();
+    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
+    tf.unit_distance = 0.25;
+    let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
+    (cam, tf, sigma)
+}
+
+fn renders(
+    p: &fluidcast_sph::Particles,
+    cam: &Camera,
+    tf: &TransferFunction,
+    prm: &RenderParams,
+) -> Vec<(&'static str, fluidcast_image::Image)> {
+    let off = RenderParams {
+        adaptive: PlanParams {
+            tolerance: None,
+            ..Default::default()
+        },
+        ..prm.clone()
+    };
+    let strict = RenderParams {
+        adaptive: PlanParams::default().strict(),
+        ..prm.clone()
+    };
+    vec![
+        ("reference", render_reference(p, cam, tf, prm).unwrap().0),
+        (
+            "adaptive off",
+            render_adaptive(p, None, cam, tf, &off).unwrap().image,
+        ),
+        (
+            "adaptive strict",
+            render_adaptive(p, None, cam, tf, &strict).unwrap().image,
+        ),
+    ]
+}
+
+#[test]
+fn slab_cut_by_a_plane_has_the_closed_form_transmittance() {
+    // The slab's medium spans view depths 2.5 .. 3.1 on the central rays; an opaque plane at
+    // view depth 2.8 leaves 0.3 of it: T = exp(-σ · 0.3).
+    let p = slab(9);
+    let (cam, tf, sigma) = slab_scene();
+    for (limit, front) in [(2.8f32, 0.3), (2.0, 0.0), (2.5, 0.0), (f32::INFINITY, 0.6)] {
+        let prm = RenderParams {
+            width: 2,
+            height: 2,
+            sampling_scale: 10.0,
+            min_transmittance: 0.0,
+            depth_limit: Some(Arc::from(vec![limit; 4])),
+            ..Default::default()
+        };
+        let expected = (-sigma * front).exp();
+        for (name, img) in renders(&p, &cam, &tf, &prm) {
+            let t = 1.0 - img.rgba[0][3] as f64;
+            // The strict plan may differ from full rate by its tolerance E_I = 0.004.
+            let tol = if name == "adaptive strict" {
+                5e-3
+            } else {
+                1e-3
+            };
+            assert!(
+                (t - expected).abs() < tol,
+                "{name}, plane at {limit}: T = {t}, expected {expected}"
+            );
+        }
+    }
+}
+
+#[test]
+fn per_pixel_limit_off_equals_reference_and_infinity_changes_nothing() {
+    let p = cloud(3000, 5);
+    let cam = Camera {
+        position: [0.3, 0.4, 2.2],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    tf.unit_distance = 0.2;
+    let (w, h) = (64u32, 48u32);
+    // A tilted plane cutting through the cloud (view depths 1.8 .. 2.6) and a hole with no
+    // geometry.
+    let limit: Vec<f32> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            if i < 8 && j < 8 {
+                f32::INFINITY
+            } else {
+                1.8 + 0.8 * (i as f32 / w as f32)
+            }
+        })
+        .collect();
+    let base = RenderParams {
+        width: w,
+        height: h,
+        ..Default::default()
+    };
+    let cut = RenderParams {
+        depth_limit: Some(Arc::from(limit)),
+        ..base.clone()
+    };
+    let r = renders(&p, &cam, &tf, &cut);
+    let diff = |a: &fluidcast_image::Image, b: &fluidcast_image::Image| {
+        fluidcast_image::compare(a, b, 1e-5).unwrap().0.max_abs
+    };
+    assert!(diff(&r[0].1, &r[1].1) <= 1e-5, "adaptive off vs reference");
+    assert!(
+        diff(&r[0].1, &r[2].1) <= 0.004 + 1e-4,
+        "strict vs reference"
+    );
+    // The cut removes something, and pixels without geometry equal the uncut image.
+    let full = render_reference(&p, &cam, &tf, &base).unwrap().0;
+    assert!(diff(&full, &r[0].1) > 0.05, "the plane hides nothing");
+    for j in 0..8 {
+        for i in 0..8 {
+            let k = full.index(i, j);
+            assert_eq!(full.rgba[k], r[0].1.rgba[k]);
+        }
+    }
+    let inf = RenderParams {
+        depth_limit: Some(Arc::from(vec![f32::INFINITY; (w * h) as usize])),
+        ..base.clone()
+    };
+    assert_eq!(render_reference(&p, &cam, &tf, &inf).unwrap().0, full);
+}
+
+#[test]
+fn bad_depth_limits_are_errors() {
+    let p = cloud(10, 1);
+    let tf = TransferFunction::preset("viridis").unwrap();
+    let cam = Camera::default();
+    for (limit, msg) in [(vec![1.0f32; 3], "3 values"), (vec![f32::NAN; 4], "NaN")] {
+        let prm = RenderParams {
+            width: 2,
+            height: 2,
+            depth_limit: Some(Arc::from(limit)),
+            ..Default::default()
+        };
+        let e = render_reference(&p, &cam, &tf, &prm)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(msg), "{e}");
+        let e = render_adaptive(&p, None, &cam, &tf, &prm)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(msg), "{e}");
+    }
+}
