@@ -156,7 +156,7 @@ fn validate(params: &RenderParams) -> Result<(), RenderError> {
         if d.len() != w as usize * h as usize {
             return Err(RenderError::DepthLimitSize(d.len(), w, h));
         }
-        if d.iter().any(|z| !(*z >= 0.0)) {
+        if d.iter().any(|z| z.is_nan() || *z < 0.0) {
             return Err(RenderError::DepthLimitValue);
         }
     }
