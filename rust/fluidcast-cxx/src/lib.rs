@@ -1,0 +1,637 @@
+//! The C++ face of fluidcast: a [`cxx`] bridge used by `vtkFluidCastVolumeMapper`
+//! (`cpp_bridge/`) and through it by the ParaView plugin.
+//!
+//! The C++ side hands over a particle set (points and point arrays as slices over the
+//! `vtkDataArray` buffers, `float` or `double`, no copy on the C++ side), the camera (vtkCamera's
+//! fields), the transfer function (sampled from `vtkColorTransferFunction` +
+//! `vtkPiecewiseFunction`), the kernel, radius and error tolerance, and the view depth of
+//! opaque geometry already drawn. It gets back premultiplied RGBA floats and depth.
+//!
+//! Data flows as in the CLI: the arrays become a [`fluidcast_io::Dataset`], which
+//! [`Particles::from_dataset`] turns into the renderer's single-precision layout with the
+//! same rules as `fluidcast render` (radius from `SupportRadius`, a radius array, the data's
+//! `support_radius` field data or the particle spacing; volume from mass/density arrays).
+//! That conversion runs once per change of data or settings, not per frame.
+//!
+//! Every entry point returns `Result`: C++ sees a `rust::Error` exception carrying the
+//! message. Panics are caught and turned into errors; none crosses the boundary.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
+use fluidcast_render::{render_adaptive, PlanParams, RenderParams, SURFACE_THRESHOLD};
+use fluidcast_sph::{
+    Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
+};
+use fluidcast_view::{Camera, TransferFunction};
+
+#[cxx::bridge(namespace = "fluidcast")]
+mod ffi {
+    /// vtkCamera's fields (world space; `view_angle` vertical, degrees).
+    #[derive(Debug, Clone)]
+    struct CameraDesc {
+        position: [f64; 3],
+        focal_point: [f64; 3],
+        view_up: [f64; 3],
+        view_angle: f64,
+        parallel_projection: bool,
+        parallel_scale: f64,
+    }
+
+    /// How to reconstruct the field.
+    #[derive(Debug, Clone)]
+    struct Settings {
+        /// Point array rendered ("" = the particle density, value 1 everywhere).
+        scalars: String,
+        /// -2: the array's single component or a vector's magnitude (ParaView's default);
+        /// -1: magnitude; k >= 0: component k.
+        component: i32,
+        /// Constant support radius H (world units); <= 0: from `radius_array`, else the
+        /// data's `support_radius` field data, else 2 x mean particle spacing.
+        support_radius: f64,
+        /// Per-particle radius array ("" = none); H = `radius_scale` x value.
+        radius_array: String,
+        radius_scale: f64,
+        /// Kernel name as the CLI's `--kernel` (cubic, quintic, wendland-c2, ...).
+        kernel: String,
+        /// Field as the CLI's `--field` (csph, sph, density).
+        field: String,
+        /// Screen-space error tolerance E_I (0..1); <= 0 renders every cell at full rate.
+        error_tolerance: f64,
+    }
+
+    /// What a render did (for the mapper's messages and tests).
+    #[derive(Debug, Clone, Default)]
+    struct RenderInfo {
+        particles: u64,
+        skipped_nonfinite: u64,
+        radius_min: f64,
+        radius_max: f64,
+        value_min: f64,
+        value_max: f64,
+        samples: u64,
+        total_ms: f64,
+        /// How radius and volumes were chosen (one line each).
+        notes: String,
+    }
+
+    extern "Rust" {
+        /// The renderer: holds the particle data, settings, camera and transfer function.
+        type Renderer;
+
+        fn new_renderer() -> Box<Renderer>;
+        /// Starts a new particle set; `name` appears in error messages.
+        fn begin_data(self: &mut Renderer, name: &str);
+        fn set_points_f32(self: &mut Renderer, xyz: &[f32]) -> Result<()>;
+        fn set_points_f64(self: &mut Renderer, xyz: &[f64]) -> Result<()>;
+        fn add_point_array_f32(
+            self: &mut Renderer,
+            name: &str,
+            components: usize,
+            values: &[f32],
+        ) -> Result<()>;
+        fn add_point_array_f64(
+            self: &mut Renderer,
+            name: &str,
+            components: usize,
+            values: &[f64],
+        ) -> Result<()>;
+        /// A field-data value such as `support_radius`.
+        fn add_field_scalar(self: &mut Renderer, name: &str, value: f64);
+        fn configure(self: &mut Renderer, settings: &Settings) -> Result<()>;
+        fn set_camera(self: &mut Renderer, camera: &CameraDesc) -> Result<()>;
+        /// `rgb` (3 per entry) and `opacity` (per `unit_distance` world units) sampled at
+        /// evenly spaced values from `lo` to `hi`.
+        fn set_transfer_function(
+            self: &mut Renderer,
+            lo: f64,
+            hi: f64,
+            rgb: &[f64],
+            opacity: &[f64],
+            unit_distance: f64,
+        ) -> Result<()>;
+        /// Builds the particles now (normally done by `render`) and reports them.
+        fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
+        /// Renders a `width x height` image, rows top first. `depth_limit` is empty or one
+        /// view depth per pixel (+inf = nothing opaque). Writes premultiplied RGBA
+        /// (`4 * width * height`) and the view depth where opacity passed 1/2 (+inf never).
+        fn render(
+            self: &mut Renderer,
+            width: u32,
+            height: u32,
+            depth_limit: &[f32],
+            rgba: &mut [f32],
+            depth: &mut [f32],
+        ) -> Result<RenderInfo>;
+    }
+}
+
+pub use ffi::{CameraDesc, RenderInfo, Settings};
+
+/// Particle data, settings and view state behind one `vtkFluidCastVolumeMapper`.
+pub struct Renderer {
+    data: Dataset,
+    settings: Option<ffi::Settings>,
+    prepared: Option<Prepared>,
+    camera: Option<Camera>,
+    tf: Option<TransferFunction>,
+}
+
+/// Particles built from the current data and settings, with their surface flags.
+struct Prepared {
+    particles: Particles,
+    surface: Vec<bool>,
+    info: ffi::RenderInfo,
+}
+
+fn new_renderer() -> Box<Renderer> {
+    Box::new(Renderer {
+        data: empty_dataset(""),
+        settings: None,
+        prepared: None,
+        camera: None,
+        tf: None,
+    })
+}
+
+fn empty_dataset(name: &str) -> Dataset {
+    Dataset {
+        path: PathBuf::from(name),
+        kind: DatasetKind::PolyData,
+        points: Vec::new(),
+        point_data: Vec::new(),
+        field_data: Vec::new(),
+    }
+}
+
+/// Runs `f`, turning a panic into an error message.
+fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(r) => r,
+        Err(p) => {
+            let msg = p
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_else(|| "unknown panic".into());
+            Err(format!("fluidcast: internal error in {what}: {msg}"))
+        }
+    }
+}
+
+impl Renderer {
+    fn name(&self) -> String {
+        self.data.path.display().to_string()
+    }
+
+    fn begin_data(&mut self, name: &str) {
+        self.data = empty_dataset(name);
+        self.prepared = None;
+    }
+
+    fn set_points<T: Copy + Into<f64>>(&mut self, xyz: &[T]) -> Result<(), String> {
+        if xyz.len() % 3 != 0 {
+            return Err(format!(
+                "{}: {} point coordinates is not a multiple of 3",
+                self.name(),
+                xyz.len()
+            ));
+        }
+        self.data.points = xyz
+            .chunks_exact(3)
+            .map(|c| [c[0].into(), c[1].into(), c[2].into()])
+            .collect();
+        self.prepared = None;
+        Ok(())
+    }
+
+    fn set_points_f32(&mut self, xyz: &[f32]) -> Result<(), String> {
+        guarded("set_points", || self.set_points(xyz))
+    }
+
+    fn set_points_f64(&mut self, xyz: &[f64]) -> Result<(), String> {
+        guarded("set_points", || self.set_points(xyz))
+    }
+
+    fn add_point_array<T: Copy + Into<f64>>(
+        &mut self,
+        name: &str,
+        components: usize,
+        values: &[T],
+        scalar_type: ScalarType,
+    ) -> Result<(), String> {
+        let n = self.data.points.len();
+        if components == 0 || values.len() != n * components {
+            return Err(format!(
+                "{}: point array '{name}' has {} values, expected {n} points x {components} components",
+                self.name(),
+                values.len()
+            ));
+        }
+        self.data.point_data.retain(|a| a.name != name);
+        self.data.point_data.push(DataArray {
+            name: name.into(),
+            scalar_type,
+            num_components: components,
+            values: values.iter().map(|&v| v.into()).collect(),
+        });
+        self.prepared = None;
+        Ok(())
+    }
+
+    fn add_point_array_f32(
+        &mut self,
+        name: &str,
+        components: usize,
+        values: &[f32],
+    ) -> Result<(), String> {
+        guarded("add_point_array", || {
+            self.add_point_array(name, components, values, ScalarType::F32)
+        })
+    }
+
+    fn add_point_array_f64(
+        &mut self,
+        name: &str,
+        components: usize,
+        values: &[f64],
+    ) -> Result<(), String> {
+        guarded("add_point_array", || {
+            self.add_point_array(name, components, values, ScalarType::F64)
+        })
+    }
+
+    fn add_field_scalar(&mut self, name: &str, value: f64) {
+        self.data.field_data.retain(|a| a.name != name);
+        self.data.field_data.push(DataArray {
+            name: name.into(),
+            scalar_type: ScalarType::F64,
+            num_components: 1,
+            values: vec![value],
+        });
+        self.prepared = None;
+    }
+
+    fn configure(&mut self, s: &ffi::Settings) -> Result<(), String> {
+        guarded("configure", || {
+            s.kernel
+                .parse::<Kernel>()
+                .map_err(|e| format!("kernel: {e}"))?;
+            parse_field(&s.field)?;
+            if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
+                return Err(format!(
+                    "error tolerance {} must be below 1 (<= 0: off)",
+                    s.error_tolerance
+                ));
+            }
+            if !s.radius_array.is_empty() && !(s.radius_scale.is_finite() && s.radius_scale > 0.0) {
+                return Err(format!("radius scale {} must be > 0", s.radius_scale));
+            }
+            if !s.support_radius.is_finite() {
+                return Err(format!("support radius {} is not finite", s.support_radius));
+            }
+            let same_particles = self.settings.as_ref().is_some_and(|o| {
+                o.scalars == s.scalars
+                    && o.component == s.component
+                    && o.support_radius == s.support_radius
+                    && o.radius_array == s.radius_array
+                    && o.radius_scale == s.radius_scale
+            });
+            if !same_particles {
+                self.prepared = None;
+            }
+            self.settings = Some(s.clone());
+            Ok(())
+        })
+    }
+
+    fn set_camera(&mut self, c: &ffi::CameraDesc) -> Result<(), String> {
+        guarded("set_camera", || {
+            let cam = Camera {
+                position: c.position,
+                focal_point: c.focal_point,
+                view_up: c.view_up,
+                view_angle: c.view_angle,
+                parallel_projection: c.parallel_projection,
+                parallel_scale: c.parallel_scale,
+            };
+            cam.frame(1, 1).map_err(|e| e.to_string())?;
+            self.camera = Some(cam);
+            Ok(())
+        })
+    }
+
+    fn set_transfer_function(
+        &mut self,
+        lo: f64,
+        hi: f64,
+        rgb: &[f64],
+        opacity: &[f64],
+        unit_distance: f64,
+    ) -> Result<(), String> {
+        guarded("set_transfer_function", || {
+            self.tf = Some(transfer_function(lo, hi, rgb, opacity, unit_distance)?);
+            Ok(())
+        })
+    }
+
+    fn prepare(&mut self) -> Result<ffi::RenderInfo, String> {
+        guarded("prepare", || self.prepared().map(|p| p.info.clone()))
+    }
+
+    fn prepared(&mut self) -> Result<&Prepared, String> {
+        if self.prepared.is_none() {
+            let s = self
+                .settings
+                .as_ref()
+                .ok_or("fluidcast: configure() was not called")?;
+            let quantity = (!s.scalars.is_empty()).then(|| Quantity {
+                array: s.scalars.clone(),
+                component: match s.component {
+                    k if k >= 0 => Component::Index(k as usize),
+                    -1 => Component::Magnitude,
+                    _ => Component::Auto,
+                },
+            });
+            let radius = if s.support_radius > 0.0 {
+                RadiusSource::Constant(s.support_radius)
+            } else if !s.radius_array.is_empty() {
+                RadiusSource::Array {
+                    name: s.radius_array.clone(),
+                    scale: s.radius_scale,
+                }
+            } else {
+                RadiusSource::Auto
+            };
+            let spec = ParticleSpec {
+                quantity,
+                radius,
+                volume: VolumeSource::Auto,
+                mass: None,
+            };
+            let particles =
+                Particles::from_dataset(&self.data, &spec).map_err(|e| e.to_string())?;
+            let surface = particles.surface_flags(SURFACE_THRESHOLD);
+            let (vlo, vhi) = particles.value_range();
+            let (rlo, rhi) = particles
+                .radii
+                .iter()
+                .fold((f32::INFINITY, 0f32), |(a, b), &r| (a.min(r), b.max(r)));
+            let info = ffi::RenderInfo {
+                particles: particles.len() as u64,
+                skipped_nonfinite: particles.skipped_nonfinite as u64,
+                radius_min: rlo as f64,
+                radius_max: rhi as f64,
+                value_min: vlo as f64,
+                value_max: vhi as f64,
+                notes: particles.notes.join("\n"),
+                ..Default::default()
+            };
+            self.prepared = Some(Prepared {
+                particles,
+                surface,
+                info,
+            });
+        }
+        Ok(self.prepared.as_ref().expect("prepared above"))
+    }
+
+    fn render(
+        &mut self,
+        width: u32,
+        height: u32,
+        depth_limit: &[f32],
+        rgba: &mut [f32],
+        depth: &mut [f32],
+    ) -> Result<ffi::RenderInfo, String> {
+        guarded("render", || {
+            let n = width as usize * height as usize;
+            if rgba.len() != 4 * n || depth.len() != n {
+                return Err(format!(
+                    "output buffers hold {} RGBA and {} depth values for a {width}x{height} image",
+                    rgba.len(),
+                    depth.len()
+                ));
+            }
+            let camera = self.camera.clone().ok_or("fluidcast: no camera set")?;
+            let tf = self
+                .tf
+                .clone()
+                .ok_or("fluidcast: no transfer function set")?;
+            let s = self
+                .settings
+                .clone()
+                .ok_or("fluidcast: configure() was not called")?;
+            let params = RenderParams {
+                width,
+                height,
+                kernel: s.kernel.parse().map_err(|e: String| e)?,
+                field: parse_field(&s.field)?,
+                adaptive: PlanParams {
+                    tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
+                    ..Default::default()
+                },
+                depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
+                ..Default::default()
+            };
+            let name = self.name();
+            let t = Instant::now();
+            let p = self.prepared()?;
+            let r = render_adaptive(&p.particles, Some(&p.surface), &camera, &tf, &params)
+                .map_err(|e| format!("{name}: {e}"))?;
+            for (k, px) in r.image.rgba.iter().enumerate() {
+                rgba[4 * k..4 * k + 4].copy_from_slice(px);
+            }
+            depth.copy_from_slice(&r.image.depth);
+            Ok(ffi::RenderInfo {
+                samples: r.stats.samples,
+                total_ms: t.elapsed().as_secs_f64() * 1e3,
+                ..p.info.clone()
+            })
+        })
+    }
+}
+
+fn parse_field(s: &str) -> Result<FieldKind, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "" | "csph" => Ok(FieldKind::Csph),
+        "sph" => Ok(FieldKind::Sph),
+        "density" => Ok(FieldKind::Density),
+        other => Err(format!("unknown field '{other}' (csph, sph, density)")),
+    }
+}
+
+/// A transfer function from tables sampled evenly over [lo, hi] (what the C++ side reads off
+/// `vtkColorTransferFunction::GetTable` and `vtkPiecewiseFunction::GetTable`).
+pub fn transfer_function(
+    lo: f64,
+    hi: f64,
+    rgb: &[f64],
+    opacity: &[f64],
+    unit_distance: f64,
+) -> Result<TransferFunction, String> {
+    let n = opacity.len();
+    if n < 2 || rgb.len() != 3 * n {
+        return Err(format!(
+            "transfer function tables: {} colour values and {n} opacities (need 3 per entry, at least 2 entries)",
+            rgb.len()
+        ));
+    }
+    if !(unit_distance.is_finite() && unit_distance > 0.0) {
+        return Err(format!(
+            "scalar opacity unit distance {unit_distance} must be > 0"
+        ));
+    }
+    if rgb.iter().chain(opacity).any(|v| !v.is_finite()) {
+        return Err("transfer function tables hold NaN or infinite values".into());
+    }
+    let x = |k: usize| k as f64 / (n - 1) as f64;
+    let tf = TransferFunction {
+        name: "vtkVolumeProperty".into(),
+        colors: (0..n)
+            .map(|k| (x(k), [rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]]))
+            .collect(),
+        opacity: (0..n).map(|k| (x(k), opacity[k].clamp(0.0, 1.0))).collect(),
+        range: (0.0, 1.0),
+        unit_distance,
+    };
+    let (lo, hi) = if hi > lo { (lo, hi) } else { (lo, lo + 1.0) };
+    tf.with_range(lo, hi).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cube(n: usize, spacing: f64) -> Vec<f64> {
+        let mut v = Vec::new();
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    v.extend([i as f64 * spacing, j as f64 * spacing, k as f64 * spacing]);
+                }
+            }
+        }
+        v
+    }
+
+    fn settings() -> ffi::Settings {
+        ffi::Settings {
+            scalars: "value".into(),
+            component: -2,
+            support_radius: 0.2,
+            radius_array: String::new(),
+            radius_scale: 1.0,
+            kernel: "cubic".into(),
+            field: "csph".into(),
+            error_tolerance: 0.004,
+        }
+    }
+
+    fn ready(r: &mut Renderer) {
+        let xyz = cube(6, 0.1);
+        r.begin_data("test cube");
+        r.set_points_f64(&xyz).unwrap();
+        let vals: Vec<f32> = (0..xyz.len() / 3).map(|i| (i % 7) as f32).collect();
+        r.add_point_array_f32("value", 1, &vals).unwrap();
+        r.configure(&settings()).unwrap();
+        r.set_camera(&ffi::CameraDesc {
+            position: [0.25, 0.25, 3.0],
+            focal_point: [0.25, 0.25, 0.25],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 30.0,
+            parallel_projection: false,
+            parallel_scale: 1.0,
+        })
+        .unwrap();
+        r.set_transfer_function(0.0, 6.0, &[0.0, 0.0, 1.0, 1.0, 0.0, 0.0], &[0.2, 0.8], 0.1)
+            .unwrap();
+    }
+
+    #[test]
+    fn renders_and_matches_the_library_call() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let (w, h) = (40u32, 30u32);
+        let mut rgba = vec![0f32; 4 * 40 * 30];
+        let mut depth = vec![0f32; 40 * 30];
+        let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+        assert_eq!(info.particles, 216);
+        assert!(info.samples > 0);
+        assert!(rgba.chunks(4).any(|p| p[3] > 0.5));
+        // Same as calling the renderer directly with the same particles.
+        let p = &r.prepared.as_ref().unwrap().particles;
+        let params = RenderParams {
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        let direct = render_adaptive(
+            p,
+            None,
+            r.camera.as_ref().unwrap(),
+            r.tf.as_ref().unwrap(),
+            &params,
+        )
+        .unwrap();
+        for (k, px) in direct.image.rgba.iter().enumerate() {
+            assert_eq!(&rgba[4 * k..4 * k + 4], px);
+        }
+    }
+
+    #[test]
+    fn bad_input_is_an_error_naming_the_data() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let mut s = settings();
+        s.scalars = "nope".into();
+        r.configure(&s).unwrap();
+        let mut rgba = vec![0f32; 4];
+        let mut depth = vec![0f32; 1];
+        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(e.contains("test cube") && e.contains("nope"), "{e}");
+
+        let mut r = new_renderer();
+        ready(&mut r);
+        let radii = vec![f32::NAN; 216];
+        r.add_point_array_f32("h", 1, &radii).unwrap();
+        let mut s = settings();
+        s.support_radius = 0.0;
+        s.radius_array = "h".into();
+        r.configure(&s).unwrap();
+        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(e.contains("support radius") && e.contains("NaN"), "{e}");
+
+        let mut r = new_renderer();
+        r.begin_data("empty");
+        r.set_points_f32(&[]).unwrap();
+        r.configure(&settings()).unwrap();
+        assert!(r.prepare().unwrap_err().contains("no points"));
+        assert!(r.add_point_array_f32("v", 1, &[1.0]).is_err());
+        assert!(r.set_points_f32(&[1.0, 2.0]).is_err());
+
+        let mut r = new_renderer();
+        ready(&mut r);
+        let mut s = settings();
+        s.kernel = "bogus".into();
+        assert!(r.configure(&s).unwrap_err().contains("bogus"));
+        assert!(r
+            .render(2, 2, &[1.0], &mut vec![0.0; 16], &mut vec![0.0; 4])
+            .unwrap_err()
+            .contains("depth limit"));
+    }
+
+    #[test]
+    fn sampled_transfer_function_interpolates_the_table() {
+        let tf =
+            transfer_function(10.0, 20.0, &[0., 0., 0., 1., 0.5, 0.], &[0.0, 1.0], 2.0).unwrap();
+        let (c, a) = tf.eval(15.0);
+        assert!((c[0] - 0.5).abs() < 1e-12 && (c[1] - 0.25).abs() < 1e-12);
+        assert!((a - 0.5).abs() < 1e-12);
+        assert!(transfer_function(0.0, 1.0, &[0.0; 3], &[0.0], 1.0).is_err());
+        assert!(transfer_function(0.0, 1.0, &[0.0; 6], &[0.0; 2], 0.0).is_err());
+    }
+}

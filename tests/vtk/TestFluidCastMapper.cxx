@@ -1,0 +1,549 @@
+// Tests of vtkFluidCastVolumeMapper in a real (offscreen, Xvfb) VTK render window.
+//
+//   TestFluidCastMapper window DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE
+//       renders DATA with the mapper and with `fluidcast render` for the same camera,
+//       transfer function and error tolerance (a number or "off"); the two 8-bit images must
+//       agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive.
+//   TestFluidCastMapper depth DATA.vtu ARRAY OUTDIR
+//       an opaque box in front of, behind and cutting through the particles: the mapper must
+//       respect the depth buffer (fails if it ignored it).
+//   TestFluidCastMapper bad DATA.vtu
+//       bad input (missing array, no points, NaN radius, NaN coordinates) gives VTK errors,
+//       no crash, nothing drawn.
+//
+// Exit code 0 = pass, 1 = fail, 77 = skipped (data not present).
+#include "vtkActor.h"
+#include "vtkCallbackCommand.h"
+#include "vtkCamera.h"
+#include "vtkColorTransferFunction.h"
+#include "vtkCubeSource.h"
+#include "vtkDoubleArray.h"
+#include "vtkFieldData.h"
+#include "vtkFloatArray.h"
+#include "vtkFluidCastVolumeMapper.h"
+#include "vtkImageData.h"
+#include "vtkNew.h"
+#include "vtkPNGReader.h"
+#include "vtkPNGWriter.h"
+#include "vtkPiecewiseFunction.h"
+#include "vtkPointData.h"
+#include "vtkPoints.h"
+#include "vtkPolyData.h"
+#include "vtkPolyDataMapper.h"
+#include "vtkProperty.h"
+#include "vtkRenderWindow.h"
+#include "vtkRenderer.h"
+#include "vtkUnsignedCharArray.h"
+#include "vtkUnstructuredGrid.h"
+#include "vtkVolume.h"
+#include "vtkVolumeProperty.h"
+#include "vtkWindowToImageFilter.h"
+#include "vtkXMLUnstructuredGridReader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace
+{
+const int W = 320, H = 240;
+
+struct Image
+{
+  int w = 0, h = 0;
+  std::vector<unsigned char> rgb; // bottom row first, as VTK
+  int at(int i, int j, int c) const { return rgb[3 * (static_cast<size_t>(j) * w + i) + c]; }
+};
+
+Image FromImageData(vtkImageData* im)
+{
+  Image out;
+  int* d = im->GetDimensions();
+  out.w = d[0];
+  out.h = d[1];
+  vtkDataArray* s = im->GetPointData()->GetScalars();
+  const int nc = s->GetNumberOfComponents();
+  out.rgb.resize(3 * static_cast<size_t>(out.w) * out.h);
+  for (vtkIdType p = 0; p < static_cast<vtkIdType>(out.w) * out.h; ++p)
+  {
+    for (int c = 0; c < 3; ++c)
+    {
+      out.rgb[3 * p + c] = static_cast<unsigned char>(s->GetComponent(p, std::min(c, nc - 1)));
+    }
+  }
+  return out;
+}
+
+Image Grab(vtkRenderWindow* win)
+{
+  vtkNew<vtkWindowToImageFilter> w2i;
+  w2i->SetInput(win);
+  w2i->SetInputBufferTypeToRGB();
+  w2i->ReadFrontBufferOff();
+  // Read what the last Render() drew. Re-rendering here would go through the filter's
+  // magnification code, which round-trips the view angle (30 -> 30.0000008) and so renders a
+  // slightly different view than the camera says.
+  w2i->ShouldRerenderOff();
+  w2i->Update();
+  return FromImageData(w2i->GetOutput());
+}
+
+void WritePng(const Image& img, const std::string& path)
+{
+  vtkNew<vtkImageData> im;
+  im->SetDimensions(img.w, img.h, 1);
+  vtkNew<vtkUnsignedCharArray> a;
+  a->SetNumberOfComponents(3);
+  a->SetNumberOfTuples(static_cast<vtkIdType>(img.w) * img.h);
+  std::copy(img.rgb.begin(), img.rgb.end(), a->GetPointer(0));
+  im->GetPointData()->SetScalars(a);
+  vtkNew<vtkPNGWriter> wr;
+  wr->SetFileName(path.c_str());
+  wr->SetInputData(im);
+  wr->Write();
+}
+
+bool Exists(const std::string& p)
+{
+  std::ifstream f(p);
+  return f.good();
+}
+
+vtkSmartPointer<vtkUnstructuredGrid> Read(const std::string& path)
+{
+  vtkNew<vtkXMLUnstructuredGridReader> r;
+  r->SetFileName(path.c_str());
+  r->Update();
+  vtkSmartPointer<vtkUnstructuredGrid> ug = r->GetOutput();
+  return ug;
+}
+
+/** The scene's transfer function: a few RGB nodes and an opacity ramp over [lo, hi]. */
+struct TF
+{
+  double lo, hi;
+  std::vector<double> rgb;     // x, r, g, b, ...
+  std::vector<double> opacity; // x, a, ...
+};
+
+TF MakeTF(double lo, double hi)
+{
+  TF tf{ lo, hi, {}, {} };
+  const double c[5][3] = { { 0.267, 0.005, 0.329 }, { 0.229, 0.322, 0.546 },
+    { 0.128, 0.567, 0.551 }, { 0.369, 0.789, 0.383 }, { 0.993, 0.906, 0.144 } };
+  for (int k = 0; k < 5; ++k)
+  {
+    tf.rgb.insert(tf.rgb.end(), { lo + (hi - lo) * k / 4.0, c[k][0], c[k][1], c[k][2] });
+  }
+  tf.opacity = { lo, 0.05, lo + 0.5 * (hi - lo), 0.3, hi, 0.8 };
+  return tf;
+}
+
+vtkSmartPointer<vtkVolumeProperty> Property(const TF& tf, double unit)
+{
+  vtkNew<vtkColorTransferFunction> ctf;
+  ctf->SetColorSpaceToRGB();
+  for (size_t i = 0; i < tf.rgb.size(); i += 4)
+  {
+    ctf->AddRGBPoint(tf.rgb[i], tf.rgb[i + 1], tf.rgb[i + 2], tf.rgb[i + 3]);
+  }
+  vtkNew<vtkPiecewiseFunction> otf;
+  for (size_t i = 0; i < tf.opacity.size(); i += 2)
+  {
+    otf->AddPoint(tf.opacity[i], tf.opacity[i + 1]);
+  }
+  auto prop = vtkSmartPointer<vtkVolumeProperty>::New();
+  prop->SetColor(ctf);
+  prop->SetScalarOpacity(otf);
+  prop->SetScalarOpacityUnitDistance(unit);
+  return prop;
+}
+
+void WritePreset(const TF& tf, const std::string& path)
+{
+  std::ofstream f(path);
+  f.precision(17);
+  f << "[{\"Name\": \"test\", \"ColorSpace\": \"RGB\", \"RGBPoints\": [";
+  for (size_t i = 0; i < tf.rgb.size(); ++i)
+  {
+    f << (i ? ", " : "") << tf.rgb[i];
+  }
+  f << "], \"Points\": [";
+  for (size_t i = 0; i < tf.opacity.size(); i += 2)
+  {
+    f << (i ? ", " : "") << tf.opacity[i] << ", " << tf.opacity[i + 1] << ", 0.5, 0";
+  }
+  f << "]}]\n";
+}
+
+void WriteCamera(vtkCamera* cam, const std::string& path)
+{
+  std::ofstream f(path);
+  f.precision(17);
+  const double* p = cam->GetPosition();
+  const double* fp = cam->GetFocalPoint();
+  const double* u = cam->GetViewUp();
+  f << "{\"position\": [" << p[0] << ", " << p[1] << ", " << p[2] << "], \"focal_point\": ["
+    << fp[0] << ", " << fp[1] << ", " << fp[2] << "], \"view_up\": [" << u[0] << ", " << u[1]
+    << ", " << u[2] << "], \"view_angle\": " << cam->GetViewAngle()
+    << ", \"parallel_projection\": " << (cam->GetParallelProjection() ? "true" : "false")
+    << ", \"parallel_scale\": " << cam->GetParallelScale() << "}\n";
+}
+
+struct Scene
+{
+  vtkNew<vtkRenderer> ren;
+  vtkNew<vtkRenderWindow> win;
+  vtkNew<vtkFluidCastVolumeMapper> mapper;
+  vtkNew<vtkVolume> volume;
+  Scene()
+  {
+    win->SetOffScreenRendering(1);
+    win->SetMultiSamples(0);
+    win->SetSize(W, H);
+    win->AddRenderer(ren);
+    volume->SetMapper(mapper);
+    ren->AddVolume(volume);
+  }
+};
+
+void SetupCamera(Scene& s, const double bounds[6])
+{
+  s.ren->ResetCamera(bounds);
+  s.ren->GetActiveCamera()->Azimuth(30);
+  s.ren->GetActiveCamera()->Elevation(20);
+  s.ren->GetActiveCamera()->OrthogonalizeViewUp();
+  s.ren->ResetCameraClippingRange(bounds);
+}
+
+struct Diff
+{
+  int max = 0;
+  double mean = 0;
+  size_t above2 = 0;
+};
+
+Diff Compare(const Image& a, const Image& b)
+{
+  Diff d;
+  for (size_t k = 0; k < a.rgb.size(); ++k)
+  {
+    const int e = std::abs(int(a.rgb[k]) - int(b.rgb[k]));
+    d.max = std::max(d.max, e);
+    d.mean += e;
+    d.above2 += e > 2;
+  }
+  d.mean /= static_cast<double>(a.rgb.size());
+  return d;
+}
+
+int Window(const std::string& data, const std::string& array, const std::string& out,
+  const std::string& cli, const std::string& tolerance)
+{
+  if (!Exists(data))
+  {
+    std::cout << "SKIP: " << data << " not present\n";
+    return 77;
+  }
+  auto ug = Read(data);
+  vtkDataArray* a = ug->GetPointData()->GetArray(array.c_str());
+  if (!a)
+  {
+    std::cerr << "no array " << array << "\n";
+    return 1;
+  }
+  double range[2];
+  a->GetRange(range, -1); // magnitude
+  TF tf = MakeTF(range[0], range[1]);
+  const double unit = 0.1;
+
+  Scene s;
+  s.ren->SetBackground(1, 1, 1);
+  s.mapper->SetInputData(ug);
+  s.mapper->SelectScalarArray(array.c_str());
+  s.mapper->SetScalarModeToUsePointFieldData();
+  s.volume->SetProperty(Property(tf, unit));
+  const double e = tolerance == "off" ? 0.0 : std::stod(tolerance);
+  s.mapper->SetErrorTolerance(e);
+  double b[6];
+  s.mapper->GetBounds(b);
+  SetupCamera(s, b);
+  s.win->Render();
+  Image ours = Grab(s.win);
+  WritePng(ours, out + "/mapper.png");
+  std::cout << "mapper: " << s.mapper->GetLastParticleCount() << " particles, H = "
+            << s.mapper->GetLastMaxRadius() << ", " << s.mapper->GetLastSamples()
+            << " samples, " << s.mapper->GetLastRenderMilliseconds() << " ms\n";
+
+  WriteCamera(s.ren->GetActiveCamera(), out + "/camera.json");
+  WritePreset(tf, out + "/tf.json");
+  std::ostringstream cmd;
+  cmd.precision(17);
+  cmd << "\"" << cli << "\" render \"" << data << "\" --array " << array << ":mag --tf \"" << out
+      << "/tf.json\" --range " << range[0] << "," << range[1] << " --camera \"" << out
+      << "/camera.json\" --size " << W << "x" << H << " --opacity-unit-distance " << unit
+      << " --background 1,1,1 --error-tolerance " << tolerance << " -o \"" << out
+      << "/cli.png\"";
+  std::cout << cmd.str() << "\n";
+  if (std::system(cmd.str().c_str()) != 0)
+  {
+    std::cerr << "FAIL: fluidcast render failed\n";
+    return 1;
+  }
+  vtkNew<vtkPNGReader> pr;
+  pr->SetFileName((out + "/cli.png").c_str());
+  pr->Update();
+  Image theirs = FromImageData(pr->GetOutput());
+  if (theirs.w != ours.w || theirs.h != ours.h)
+  {
+    std::cerr << "FAIL: sizes differ\n";
+    return 1;
+  }
+  Diff d = Compare(ours, theirs);
+  size_t drawn = 0;
+  for (size_t k = 0; k < ours.rgb.size(); k += 3)
+  {
+    drawn += ours.rgb[k] != 255 || ours.rgb[k + 1] != 255 || ours.rgb[k + 2] != 255;
+  }
+  std::cout << "mapper vs CLI: max abs " << d.max << "/255, mean " << d.mean << "/255, "
+            << d.above2 << " channels above 2/255; " << drawn << " pixels drawn\n";
+  if (drawn < static_cast<size_t>(W * H / 20))
+  {
+    std::cerr << "FAIL: the mapper drew almost nothing\n";
+    return 1;
+  }
+  // Full rate: both sample the same depths; the mapper's transfer function is VTK's
+  // 1024-entry table of the same nodes, so only 8-bit rounding is left (2/255 allowed).
+  // Adaptive: each image is within E_I of full rate and the two plans may choose differently
+  // (their transfer-function bounds come from different control points), so 2 E_I plus one
+  // level of rounding.
+  const int allowed = e > 0 ? static_cast<int>(std::ceil(2 * e * 255)) + 1 : 2;
+  std::cout << "allowed: " << allowed << "/255\n";
+  return d.max <= allowed ? 0 : 1;
+}
+
+int Depth(const std::string& data, const std::string& array, const std::string& out)
+{
+  if (!Exists(data))
+  {
+    std::cout << "SKIP: " << data << " not present\n";
+    return 77;
+  }
+  auto ug = Read(data);
+  double range[2];
+  ug->GetPointData()->GetArray(array.c_str())->GetRange(range, -1);
+  TF tf = MakeTF(range[0], range[1]);
+
+  Scene s;
+  s.mapper->SetInputData(ug);
+  s.mapper->SelectScalarArray(array.c_str());
+  s.mapper->SetScalarModeToUsePointFieldData();
+  s.volume->SetProperty(Property(tf, 0.05));
+  double b[6];
+  s.mapper->GetBounds(b);
+  // Look down -z so "in front" and "behind" are z ranges; a parallel projection gives the
+  // box the same footprint at every depth.
+  s.ren->GetActiveCamera()->ParallelProjectionOn();
+  s.ren->ResetCamera(b);
+
+  auto render = [&](double bg) {
+    s.ren->SetBackground(bg, bg, bg);
+    s.ren->ResetCameraClippingRange(b[0] - 1, b[1] + 1, b[2] - 1, b[3] + 1, b[4] - 1, b[5] + 1);
+    s.win->Render();
+    return Grab(s.win);
+  };
+  Image black = render(0), white = render(1);
+
+  // An unlit red box covering the middle of the view, at a chosen z range.
+  vtkNew<vtkCubeSource> cube;
+  vtkNew<vtkPolyDataMapper> cm;
+  cm->SetInputConnection(cube->GetOutputPort());
+  vtkNew<vtkActor> box;
+  box->SetMapper(cm);
+  box->GetProperty()->SetColor(1, 0, 0);
+  box->GetProperty()->LightingOff();
+  s.ren->AddActor(box);
+  const double cx = 0.5 * (b[0] + b[1]), cy = 0.5 * (b[2] + b[3]);
+  const double dx = 0.3 * (b[1] - b[0]), dy = 0.3 * (b[3] - b[2]);
+  auto place = [&](double z0, double z1) {
+    cube->SetBounds(cx - dx, cx + dx, cy - dy, cy + dy, z0, z1);
+  };
+  const double zmid = 0.5 * (b[4] + b[5]), zext = b[5] - b[4];
+  place(b[5] + 0.05 * zext, b[5] + 0.1 * zext); // in front (camera looks down -z from +z)
+  Image front = render(0);
+  place(b[4] - 0.1 * zext, b[4] - 0.05 * zext); // behind
+  Image behind = render(0);
+  place(b[4] - 0.1 * zext, zmid); // from behind to the middle
+  Image cut = render(0);
+  WritePng(front, out + "/depth_front.png");
+  WritePng(behind, out + "/depth_behind.png");
+  WritePng(cut, out + "/depth_cut.png");
+  WritePng(black, out + "/depth_none.png");
+  WritePng(white, out + "/depth_none_white.png");
+
+  // Pixels inside the box's footprint where the particles are clearly visible.
+  double p0[4] = { cx - dx, cy - dy, b[5], 1 }, p1[4] = { cx + dx, cy + dy, b[5], 1 };
+  s.ren->SetWorldPoint(p0);
+  s.ren->WorldToDisplay();
+  double d0[3];
+  s.ren->GetDisplayPoint(d0);
+  s.ren->SetWorldPoint(p1);
+  s.ren->WorldToDisplay();
+  double d1[3];
+  s.ren->GetDisplayPoint(d1);
+  size_t n = 0, frontBad = 0, behindBad = 0, cutHidden = 0, cutAsBehind = 0;
+  for (int j = int(std::ceil(std::min(d0[1], d1[1]))) + 2; j < int(std::max(d0[1], d1[1])) - 2;
+       ++j)
+  {
+    for (int i = int(std::ceil(std::min(d0[0], d1[0]))) + 2; i < int(std::max(d0[0], d1[0])) - 2;
+         ++i)
+    {
+      if (i < 0 || j < 0 || i >= W || j >= H)
+      {
+        continue;
+      }
+      // alpha from the black/white pair: white - black = (1 - alpha) * 255.
+      const double alpha = 1.0 - (white.at(i, j, 1) - black.at(i, j, 1)) / 255.0;
+      if (alpha < 0.3)
+      {
+        continue;
+      }
+      ++n;
+      // In front: exactly the box colour.
+      frontBad += front.at(i, j, 0) != 255 || front.at(i, j, 1) != 0 || front.at(i, j, 2) != 0;
+      // Behind: the particles over the box, P + (1 - alpha) * red.
+      for (int c = 0; c < 3; ++c)
+      {
+        const double want = black.at(i, j, c) + (c == 0 ? (1 - alpha) * 255 : 0);
+        behindBad += std::abs(behind.at(i, j, c) - want) > 3;
+      }
+      // Cutting: the half of the particles behind the box face is hidden, so the pixel is
+      // neither the box nor the "behind" composite.
+      cutHidden += cut.at(i, j, 0) == 255 && cut.at(i, j, 1) == 0 && cut.at(i, j, 2) == 0;
+      int diff = 0;
+      for (int c = 0; c < 3; ++c)
+      {
+        diff = std::max(diff, std::abs(cut.at(i, j, c) - behind.at(i, j, c)));
+      }
+      cutAsBehind += diff <= 3;
+    }
+  }
+  std::cout << n << " covered pixels in the box footprint; box in front: " << frontBad
+            << " not the box colour; behind: " << behindBad
+            << " channels off P + (1 - a) B by more than 3/255; cutting: " << cutHidden
+            << " show only the box, " << cutAsBehind << " look as if it were behind\n";
+  if (n < 200)
+  {
+    std::cerr << "FAIL: too few covered pixels to judge\n";
+    return 1;
+  }
+  const bool ok = frontBad == 0 && behindBad <= n / 100 && cutHidden < n / 2 && cutAsBehind < n / 2;
+  return ok ? 0 : 1;
+}
+
+struct ErrorCatcher
+{
+  std::vector<std::string> messages;
+  static void Callback(vtkObject*, unsigned long, void* self, void* data)
+  {
+    static_cast<ErrorCatcher*>(self)->messages.emplace_back(static_cast<const char*>(data));
+  }
+};
+
+int Bad(const std::string& data)
+{
+  if (!Exists(data))
+  {
+    std::cout << "SKIP: " << data << " not present\n";
+    return 77;
+  }
+  auto ug = Read(data);
+  int failures = 0;
+  auto expect = [&](const char* what, vtkPointSet* input, const char* array, const char* radius,
+                  const char* needle) {
+    Scene s;
+    ErrorCatcher catcher;
+    vtkNew<vtkCallbackCommand> cb;
+    cb->SetCallback(ErrorCatcher::Callback);
+    cb->SetClientData(&catcher);
+    s.mapper->AddObserver(vtkCommand::ErrorEvent, cb);
+    s.mapper->SetInputData(input);
+    s.mapper->SelectScalarArray(array);
+    s.mapper->SetScalarModeToUsePointFieldData();
+    if (radius)
+    {
+      s.mapper->SetRadiusArray(radius);
+    }
+    s.volume->SetProperty(Property(MakeTF(0, 1), 0.1));
+    s.ren->SetBackground(1, 1, 1);
+    s.ren->ResetCamera(-1, 1, -1, 1, -1, 1);
+    s.win->Render();
+    Image img = Grab(s.win);
+    const bool blank =
+      std::all_of(img.rgb.begin(), img.rgb.end(), [](unsigned char v) { return v == 255; });
+    bool found = false;
+    for (auto& m : catcher.messages)
+    {
+      found |= m.find(needle) != std::string::npos;
+    }
+    std::cout << what << ": " << (catcher.messages.empty() ? "(no error)" : catcher.messages[0])
+              << "\n";
+    if (!found || !blank)
+    {
+      std::cerr << "FAIL: " << what << ": expected an error containing '" << needle << "'"
+                << (blank ? "" : " and nothing drawn") << "\n";
+      ++failures;
+    }
+  };
+  expect("missing array", ug, "no_such_array", nullptr, "no_such_array");
+  vtkNew<vtkPolyData> empty;
+  vtkNew<vtkPoints> none;
+  empty->SetPoints(none);
+  expect("no points", empty, "density", nullptr, "no points");
+
+  vtkNew<vtkUnstructuredGrid> nanRadius;
+  nanRadius->ShallowCopy(ug);
+  vtkNew<vtkFloatArray> h;
+  h->SetName("h");
+  h->SetNumberOfTuples(ug->GetNumberOfPoints());
+  h->Fill(std::nan(""));
+  nanRadius->GetPointData()->AddArray(h);
+  nanRadius->GetFieldData()->Initialize(); // no support_radius fallback
+  expect("NaN radius", nanRadius, "density", "h", "NaN");
+
+  vtkNew<vtkUnstructuredGrid> nanPoints;
+  nanPoints->DeepCopy(ug);
+  for (vtkIdType i = 0; i < nanPoints->GetNumberOfPoints(); ++i)
+  {
+    nanPoints->GetPoints()->SetPoint(i, std::nan(""), 0, 0);
+  }
+  expect("NaN coordinates", nanPoints, "density", nullptr, "NaN");
+  return failures == 0 ? 0 : 1;
+}
+} // namespace
+
+int main(int argc, char* argv[])
+{
+  const std::string mode = argc > 1 ? argv[1] : "";
+  if (mode == "window" && argc == 7)
+  {
+    return Window(argv[2], argv[3], argv[4], argv[5], argv[6]);
+  }
+  if (mode == "depth" && argc == 5)
+  {
+    return Depth(argv[2], argv[3], argv[4]);
+  }
+  if (mode == "bad" && argc == 3)
+  {
+    return Bad(argv[2]);
+  }
+  std::cerr << "usage: TestFluidCastMapper window DATA ARRAY OUTDIR CLI TOLERANCE | depth DATA ARRAY "
+               "OUTDIR | bad DATA\n";
+  return 2;
+}
