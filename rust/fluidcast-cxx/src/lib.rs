@@ -193,7 +193,7 @@ impl Renderer {
     }
 
     fn set_points<T: Copy + Into<f64>>(&mut self, xyz: &[T]) -> Result<(), String> {
-        if xyz.len() % 3 != 0 {
+        if !xyz.len().is_multiple_of(3) {
             return Err(format!(
                 "{}: {} point coordinates is not a multiple of 3",
                 self.name(),
@@ -287,7 +287,8 @@ impl Renderer {
                     s.error_tolerance
                 ));
             }
-            if !s.radius_array.is_empty() && !(s.radius_scale.is_finite() && s.radius_scale > 0.0) {
+            let scale_ok = s.radius_scale.is_finite() && s.radius_scale > 0.0;
+            if !s.radius_array.is_empty() && !scale_ok {
                 return Err(format!("radius scale {} must be > 0", s.radius_scale));
             }
             if !s.support_radius.is_finite() {
@@ -619,7 +620,7 @@ mod tests {
         s.kernel = "bogus".into();
         assert!(r.configure(&s).unwrap_err().contains("bogus"));
         assert!(r
-            .render(2, 2, &[1.0], &mut vec![0.0; 16], &mut vec![0.0; 4])
+            .render(2, 2, &[1.0], &mut [0.0; 16], &mut [0.0; 4])
             .unwrap_err()
             .contains("depth limit"));
     }
