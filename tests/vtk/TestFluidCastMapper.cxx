@@ -121,6 +121,12 @@ vtkSmartPointer<vtkUnstructuredGrid> Read(const std::string& path)
   r->SetFileName(path.c_str());
   r->Update();
   vtkSmartPointer<vtkUnstructuredGrid> ug = r->GetOutput();
+  if (!ug || ug->GetNumberOfPoints() == 0)
+  {
+    std::cerr << "FAIL: VTK could not read " << path
+              << " (on Debian 12, run with LD_PRELOAD=libfluidcast_expat_fix.so)\n";
+    std::exit(1);
+  }
   return ug;
 }
 
