@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test: the Rust workspace, then the Python tests that hold fluidcast against
 # VTK itself (reader, vtkSPHInterpolator, camera, transfer function, VTK's volume rendering
-# of the resampled field). Installs missing system packages and sets up .venv/ first
-# (both idempotent).
+# of the resampled field), then builds the VTK mapper and ParaView plugin and runs their
+# ctest tests. Installs missing system packages and sets up .venv/ first (idempotent).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
@@ -11,3 +11,6 @@ bash scripts/setup_python.sh
 cargo build --bin fluidcast
 cargo test --workspace
 .venv/bin/python -m pytest -q tests/python
+# The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
+bash scripts/setup_vtk.sh
+ctest --test-dir build --output-on-failure
