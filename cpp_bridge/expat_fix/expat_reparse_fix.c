@@ -21,9 +21,23 @@ typedef XML_Parser (*create_mm_fn)(
   const XML_Char*, const XML_Memory_Handling_Suite*, const XML_Char*);
 typedef XML_Bool (*deferral_fn)(XML_Parser, XML_Bool);
 
+/* The real expat function: the next definition after this library, or, when expat was only
+ * loaded privately by a dlopen()ed library (Mesa's DRI drivers read their config with it),
+ * expat itself. */
+static void* real_symbol(const char* name)
+{
+  void* f = dlsym(RTLD_NEXT, name);
+  if (!f)
+  {
+    void* lib = dlopen("libexpat.so.1", RTLD_NOW | RTLD_LOCAL);
+    f = lib ? dlsym(lib, name) : NULL;
+  }
+  return f;
+}
+
 static XML_Parser no_deferral(XML_Parser p)
 {
-  deferral_fn set = (deferral_fn)dlsym(RTLD_DEFAULT, "XML_SetReparseDeferralEnabled");
+  deferral_fn set = (deferral_fn)real_symbol("XML_SetReparseDeferralEnabled");
   if (p && set)
   {
     set(p, XML_FALSE);
@@ -33,19 +47,19 @@ static XML_Parser no_deferral(XML_Parser p)
 
 XML_Parser XML_ParserCreate(const XML_Char* encoding)
 {
-  create_fn real = (create_fn)dlsym(RTLD_NEXT, "XML_ParserCreate");
-  return no_deferral(real(encoding));
+  create_fn real = (create_fn)real_symbol("XML_ParserCreate");
+  return real ? no_deferral(real(encoding)) : NULL;
 }
 
 XML_Parser XML_ParserCreateNS(const XML_Char* encoding, XML_Char sep)
 {
-  create_ns_fn real = (create_ns_fn)dlsym(RTLD_NEXT, "XML_ParserCreateNS");
-  return no_deferral(real(encoding, sep));
+  create_ns_fn real = (create_ns_fn)real_symbol("XML_ParserCreateNS");
+  return real ? no_deferral(real(encoding, sep)) : NULL;
 }
 
 XML_Parser XML_ParserCreate_MM(
   const XML_Char* encoding, const XML_Memory_Handling_Suite* mm, const XML_Char* sep)
 {
-  create_mm_fn real = (create_mm_fn)dlsym(RTLD_NEXT, "XML_ParserCreate_MM");
-  return no_deferral(real(encoding, mm, sep));
+  create_mm_fn real = (create_mm_fn)real_symbol("XML_ParserCreate_MM");
+  return real ? no_deferral(real(encoding, mm, sep)) : NULL;
 }
