@@ -2,29 +2,9 @@
 mod common;
 use std::sync::Arc;
 
-use common::{cloud, slab};
+use common::{cloud, slab, slab_scene};
 use fluidcast_render::{render_adaptive, render_reference, PlanParams, RenderParams};
 use fluidcast_view::{Camera, TransferFunction};
-
-fn slab_scene() -> (Camera, TransferFunction, f64) {
-    let cam = Camera {
-        position: [0.0, 0.0, 3.0],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        parallel_projection: true,
-        parallel_scale: 0.002,
-        ..Default::default()
-    };
-    let alpha = 0.4;
-    let mut tf = TransferFunction::preset("grayscale")
-        .unwrap()
-        .with_range(0.0, 1.0)
-        .unwrap();
-    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
-    tf.unit_distance = 0.25;
-    let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
-    (cam, tf, sigma)
-}
 
 fn renders(
     p: &fluidcast_sph::Particles,

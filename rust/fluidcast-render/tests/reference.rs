@@ -114,22 +114,7 @@ fn uniform_slab_transmittance_is_exponential() {
     let nz = 9; // z = 0 .. 0.4
     let p = common::slab(nz);
     let thickness = (nz - 1) as f64 * spacing as f64 + 2.0 * h as f64;
-    let cam = Camera {
-        position: [0.0, 0.0, 3.0],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        parallel_projection: true,
-        parallel_scale: 0.002,
-        ..Default::default()
-    };
-    let alpha = 0.4; // opacity per unit distance
-    let mut tf = TransferFunction::preset("grayscale")
-        .unwrap()
-        .with_range(0.0, 1.0)
-        .unwrap();
-    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
-    tf.unit_distance = 0.25;
-    let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
+    let (cam, tf, sigma) = common::slab_scene();
     let prm = RenderParams {
         width: 2,
         height: 2,

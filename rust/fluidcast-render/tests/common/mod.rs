@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use fluidcast_sph::Particles;
+use fluidcast_view::{Camera, TransferFunction};
 
 /// A xorshift generator of values in [0, 1] (seed 0 is treated as 1).
 pub fn rng(seed: u32) -> impl FnMut() -> f32 {
@@ -49,4 +50,27 @@ pub fn slab(nz: usize) -> Particles {
         }
     }
     p
+}
+
+/// A parallel camera looking down −z at the slab's central rays (view depth 2.5 .. 3.1 for
+/// `slab(9)`), and a grey transfer function with constant opacity 0.4 per 0.25 world units;
+/// also returns the extinction σ = −ln(1 − 0.4)/0.25.
+pub fn slab_scene() -> (Camera, TransferFunction, f64) {
+    let cam = Camera {
+        position: [0.0, 0.0, 3.0],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        parallel_projection: true,
+        parallel_scale: 0.002,
+        ..Default::default()
+    };
+    let alpha = 0.4;
+    let mut tf = TransferFunction::preset("grayscale")
+        .unwrap()
+        .with_range(0.0, 1.0)
+        .unwrap();
+    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
+    tf.unit_distance = 0.25;
+    let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
+    (cam, tf, sigma)
 }
