@@ -2,12 +2,13 @@
 # Installs the Debian packages the tests and the C++/ParaView build need, only those missing
 # (idempotent; no network when everything is there):
 #  - Mesa's EGL + software OpenGL: pip's VTK renders offscreen through it (tests/python);
+#  - Mesa's lavapipe (software Vulkan): the GPU ray caster's tests run on it without a GPU;
 #  - ParaView 5.11 with its development files and Python (its VTK 9.2 builds the VTK mapper
 #    and the plugin), cmake, Xvfb (Debian's VTK/ParaView windows need an X display), and the
 #    -dev packages ParaView's CMake config looks for.
 set -euo pipefail
 packages=(
-  libegl1 libegl-mesa0 libgl1-mesa-dri libgl1
+  libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 mesa-vulkan-drivers libvulkan1
   paraview paraview-dev python3-paraview cmake xvfb xauth
   libglew-dev libopenmpi-dev libexpat1-dev libdouble-conversion-dev liblz4-dev libutfcpp-dev
   libtiff-dev libfreetype-dev libgl2ps-dev libjpeg-dev liblzma-dev libxml2-dev libpng-dev

@@ -9,7 +9,8 @@ cd "$root"
 bash scripts/setup_system.sh
 bash scripts/setup_python.sh
 cargo build --bin fluidcast
-cargo test --workspace
+# setup_system.sh installed lavapipe, so the GPU tests must find an adapter, not skip.
+FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
 .venv/bin/python -m pytest -q tests/python
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh

@@ -91,6 +91,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
             tols.push(Some(e));
         }
     }
+    if a.sampling.backend != crate::view::Backend::Cpu {
+        bail!("fluidcast bench --backend gpu|auto is not implemented yet (GPU stage timings need timestamp queries); `fluidcast render --backend gpu --stats F` reports upload and ray casting times");
+    }
     let base = a.sampling.params(&a.view, &a.particles)?;
     let base_tf = a.view.base_tf()?;
     let input = Input::open(&a.input)?;

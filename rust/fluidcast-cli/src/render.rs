@@ -11,7 +11,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
-use crate::view::{Mode, SamplingArgs, ViewArgs};
+use crate::view::{Backend, Mode, SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -49,7 +49,7 @@ pub struct RenderArgs {
     aovs: bool,
 }
 
-/// Renders one frame with the chosen renderer.
+/// Renders one frame with the chosen renderer; `gpu` casts the adaptive renderer's rays.
 pub fn render_frame(
     particles: &Particles,
     surface: Option<&[bool]>,
@@ -57,14 +57,45 @@ pub fn render_frame(
     tf: &TransferFunction,
     params: &RenderParams,
     mode: Mode,
+    gpu: Option<&fluidcast_gpu::Gpu>,
 ) -> Result<(Image, RenderStats)> {
-    Ok(match mode {
-        Mode::Reference => render_reference(particles, camera, tf, params)?,
-        Mode::Adaptive => {
+    Ok(match (mode, gpu) {
+        (Mode::Reference, _) => render_reference(particles, camera, tf, params)?,
+        (Mode::Adaptive, None) => {
             let r = render_adaptive(particles, surface, camera, tf, params)?;
             (r.image, r.stats)
         }
+        (Mode::Adaptive, Some(g)) => {
+            let r = g.render_adaptive(particles, surface, camera, tf, params)?;
+            (r.image, r.stats)
+        }
     })
+}
+
+/// Opens the GPU for `--backend gpu|auto` (adaptive mode only).
+pub fn open_gpu(backend: Backend, mode: Mode) -> Result<Option<fluidcast_gpu::Gpu>> {
+    match (backend, mode) {
+        (Backend::Cpu, _) => Ok(None),
+        (Backend::Gpu, Mode::Reference) => {
+            bail!("--backend gpu renders the adaptive mode only (drop --mode reference)")
+        }
+        (Backend::Auto, Mode::Reference) => Ok(None),
+        (Backend::Gpu, Mode::Adaptive) => {
+            let g = fluidcast_gpu::Gpu::new().context("--backend gpu")?;
+            eprintln!("GPU: {}", g.adapter);
+            Ok(Some(g))
+        }
+        (Backend::Auto, Mode::Adaptive) => match fluidcast_gpu::Gpu::new() {
+            Ok(g) => {
+                eprintln!("GPU: {}", g.adapter);
+                Ok(Some(g))
+            }
+            Err(e) => {
+                eprintln!("note: --backend auto: {e}; rendering on the CPU");
+                Ok(None)
+            }
+        },
+    }
 }
 
 fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<()> {
@@ -242,6 +273,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
         pb
     });
+    let gpu = open_gpu(a.sampling.backend, a.sampling.mode)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
     for (n, &fi) in frames.iter().enumerate() {
@@ -277,6 +309,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             &tf,
             &params,
             a.sampling.mode,
+            gpu.as_ref(),
         )
         .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));

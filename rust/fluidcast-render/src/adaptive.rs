@@ -27,17 +27,25 @@ pub struct AdaptiveRender {
 /// One bundle's output: bundle index, (premultiplied RGBA, depth) per pixel, samples taken.
 type BundleResult = (usize, Vec<([f32; 4], f32)>, u64);
 
-/// Renders with the adaptive grid renderer (Hochstetter et al. 2016): grid, sampling plan
-/// for `params.adaptive` (no error tolerance: every cell at full rate), bundle-coherent ray
-/// casting. `surface` flags surface particles; `None` computes them when the surface test is
-/// on (pass them to avoid recomputing for many views of one frame).
-pub fn render_adaptive(
+/// The first two stages of the adaptive renderer for one view: the sparse perspective grid and
+/// the sampling plan, with their timings (`grid`, `adapt`) in `stats`. The ray casting stage
+/// ([`render_adaptive`] on the CPU, `fluidcast-gpu` on the GPU) consumes it.
+#[derive(Debug, Clone)]
+pub struct AdaptivePlan {
+    pub grid: PerspectiveGrid,
+    pub plan: SamplingPlan,
+    pub stats: RenderStats,
+}
+
+/// Builds the grid and the sampling plan (see [`AdaptivePlan`]); `surface` as for
+/// [`render_adaptive`].
+pub fn plan_adaptive(
     particles: &Particles,
     surface: Option<&[bool]>,
     camera: &Camera,
     tf: &TransferFunction,
     params: &RenderParams,
-) -> Result<AdaptiveRender, RenderError> {
+) -> Result<AdaptivePlan, RenderError> {
     let t0 = Instant::now();
     validate(params)?;
     let (w, h) = (params.width, params.height);
@@ -79,6 +87,28 @@ pub fn render_adaptive(
     let plan = SamplingPlan::build(&grid, tf, surface, a, &field)?;
     stats.plan = Some(plan.stats.clone());
     stats.stages.push(("adapt", ms(t1)));
+    Ok(AdaptivePlan { grid, plan, stats })
+}
+
+/// Renders with the adaptive grid renderer (Hochstetter et al. 2016): grid, sampling plan
+/// for `params.adaptive` (no error tolerance: every cell at full rate), bundle-coherent ray
+/// casting. `surface` flags surface particles; `None` computes them when the surface test is
+/// on (pass them to avoid recomputing for many views of one frame).
+pub fn render_adaptive(
+    particles: &Particles,
+    surface: Option<&[bool]>,
+    camera: &Camera,
+    tf: &TransferFunction,
+    params: &RenderParams,
+) -> Result<AdaptiveRender, RenderError> {
+    let t0 = Instant::now();
+    let AdaptivePlan {
+        grid,
+        plan,
+        mut stats,
+    } = plan_adaptive(particles, surface, camera, tf, params)?;
+    let frame = grid.frame;
+    let (w, h) = (params.width, params.height);
 
     let t2 = Instant::now();
     let mut image = Image::new(w, h);
@@ -167,27 +197,7 @@ pub fn render_adaptive(
         }
     }
     stats.stages.push(("raycast", ms(t2)));
-    if !plan.summaries.is_empty() {
-        let n = image.rgba.len();
-        let mut aov = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
-        for (b, s) in plan.summaries.iter().enumerate() {
-            let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-            for j in y0..y1 {
-                for i in x0..x1 {
-                    let idx = image.index(i, j);
-                    aov[0][idx] = s.predicted_error;
-                    aov[1][idx] = s.mean_level;
-                    aov[2][idx] = s.superpixel;
-                }
-            }
-        }
-        let [e, l, sp] = aov;
-        image.aovs = vec![
-            ("error_bound".into(), e),
-            ("level".into(), l),
-            ("superpixel".into(), sp),
-        ];
-    }
+    image.aovs = plan_aovs(&grid, &plan, image.width, image.height);
     stats.stages.push(("total", ms(t0)));
     Ok(AdaptiveRender {
         image,
@@ -195,4 +205,36 @@ pub fn render_adaptive(
         grid,
         plan,
     })
+}
+
+/// The plan's per-pixel diagnostics (`error_bound`, `level`, `superpixel`, each from the
+/// pixel's bundle), as image AOVs; empty without a plan.
+pub fn plan_aovs(
+    grid: &PerspectiveGrid,
+    plan: &SamplingPlan,
+    width: u32,
+    height: u32,
+) -> Vec<(String, Vec<f32>)> {
+    if plan.summaries.is_empty() {
+        return Vec::new();
+    }
+    let n = width as usize * height as usize;
+    let mut aov = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
+    for (b, s) in plan.summaries.iter().enumerate() {
+        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
+        for j in y0..y1 {
+            for i in x0..x1 {
+                let idx = j as usize * width as usize + i as usize;
+                aov[0][idx] = s.predicted_error;
+                aov[1][idx] = s.mean_level;
+                aov[2][idx] = s.superpixel;
+            }
+        }
+    }
+    let [e, l, sp] = aov;
+    vec![
+        ("error_bound".into(), e),
+        ("level".into(), l),
+        ("superpixel".into(), sp),
+    ]
 }

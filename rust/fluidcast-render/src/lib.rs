@@ -24,7 +24,9 @@ mod reference;
 use std::sync::Arc;
 use std::time::Instant;
 
-pub use adaptive::{render_adaptive, AdaptiveRender, SURFACE_THRESHOLD};
+pub use adaptive::{
+    plan_adaptive, plan_aovs, render_adaptive, AdaptivePlan, AdaptiveRender, SURFACE_THRESHOLD,
+};
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{PlanError, PlanParams, PlanStats};
 pub use reference::render_reference;
@@ -136,7 +138,8 @@ impl RenderStats {
     }
 }
 
-fn ms(t: Instant) -> f64 {
+/// Milliseconds since `t`.
+pub fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 

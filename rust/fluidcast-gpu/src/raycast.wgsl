@@ -1,0 +1,278 @@
+// Bundle-coherent ray casting (Hochstetter et al. 2016, Alg. 2) of a sampling plan built on
+// the CPU: one workgroup per ray bundle, one invocation per ray. For each span of the
+// bundle's plan (front to back) the span's particles are loaded into workgroup memory in
+// chunks and every ray scatters them into its samples; then the samples are composited.
+// Mirrors fluidcast-render's CPU caster (raycast.rs / adaptive.rs) in single precision.
+
+struct Params {
+    width: u32,
+    height: u32,
+    bundles_x: u32,
+    bundle: u32,
+    aspect: f32,
+    tan_half: f32,
+    parallel_scale: f32, // > 0: parallel projection with this scale
+    min_transmittance: f32,
+    field: u32,          // 0 csph, 1 sph, 2 density
+    kernel: u32,         // 0 cubic, 1 quintic, 2 wendland-c2, 3 wendland-c4, 4 poly6, 5 gaussian
+    gauss_norm: f32,     // the Gaussian kernel's normalisation constant c (see kernel.rs)
+    n_colors: u32,
+    n_opacity: u32,
+    tf_lo: f32,
+    tf_hi: f32,
+    unit_distance: f32,
+};
+
+struct Span {
+    k0: u32,        // first depth index
+    n: u32,         // samples (depths k0 + m*step, m = 0..n; n+1 depths bound n steps)
+    step: u32,
+    ref_start: u32,
+    ref_count: u32,
+    superpixel: u32, // 1: composite `sp` instead of sampling
+    pad0: u32,
+    pad1: u32,
+    sp: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var<storage, read> particles: array<vec4<f32>>; // (c.xyz, h), (v, a, m, 0)
+@group(0) @binding(2) var<storage, read> depths: array<f32>;
+@group(0) @binding(3) var<storage, read> spans: array<Span>;
+@group(0) @binding(4) var<storage, read> bundle_spans: array<u32>; // span range per bundle
+@group(0) @binding(5) var<storage, read> refs: array<u32>;
+@group(0) @binding(6) var<storage, read> colors: array<vec4<f32>>;  // (x, r, g, b)
+@group(0) @binding(7) var<storage, read> opacity: array<vec2<f32>>; // (x, alpha)
+@group(0) @binding(8) var<storage, read_write> out_rgba: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read_write> out_depth: array<f32>;
+@group(0) @binding(10) var<storage, read_write> out_samples: array<u32>;
+
+const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
+const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
+const PI: f32 = 3.14159265358979;
+
+var<workgroup> cache_a: array<vec4<f32>, 64>;
+var<workgroup> cache_b: array<vec4<f32>, 64>;
+var<workgroup> all_done: atomic<u32>;
+var<workgroup> done_flag: u32;
+
+fn kernel_w(r: f32, h: f32) -> f32 {
+    let q = r / h;
+    if (q >= 1.0) {
+        return 0.0;
+    }
+    let h3 = h * h * h;
+    switch P.kernel {
+        case 0u: {
+            let k = 8.0 / (PI * h3);
+            if (q <= 0.5) {
+                return k * (6.0 * q * q * q - 6.0 * q * q + 1.0);
+            }
+            let t = 1.0 - q;
+            return k * 2.0 * t * t * t;
+        }
+        case 1u: {
+            let s = 3.0 * q;
+            let hh = h / 3.0;
+            let a = max(3.0 - s, 0.0);
+            let b = max(2.0 - s, 0.0);
+            let c = max(1.0 - s, 0.0);
+            let p = a * a * a * a * a - 6.0 * b * b * b * b * b + 15.0 * c * c * c * c * c;
+            return p / (120.0 * PI * hh * hh * hh);
+        }
+        case 2u: {
+            let t = 1.0 - q;
+            return 21.0 / (2.0 * PI * h3) * t * t * t * t * (1.0 + 4.0 * q);
+        }
+        case 3u: {
+            let t = 1.0 - q;
+            let t2 = t * t;
+            return 495.0 / (32.0 * PI * h3) * t2 * t2 * t2 * (1.0 + 6.0 * q + 35.0 / 3.0 * q * q);
+        }
+        case 4u: {
+            let d = 1.0 - q * q;
+            return 315.0 / (64.0 * PI * h3) * d * d * d;
+        }
+        default: {
+            let sigma = h / 3.0;
+            return exp(-(r * r) / (2.0 * sigma * sigma)) / (P.gauss_norm * sigma * sigma * sigma);
+        }
+    }
+}
+
+fn tf_eval(q: f32) -> vec4<f32> {
+    // ParaView-style: clamp to the range, interpolate linearly between control points.
+    let t = clamp((q - P.tf_lo) / (P.tf_hi - P.tf_lo), 0.0, 1.0);
+    var rgb = colors[0].yzw;
+    if (t > colors[0].x) {
+        rgb = colors[P.n_colors - 1u].yzw;
+        for (var i = 1u; i < P.n_colors; i = i + 1u) {
+            if (t <= colors[i].x) {
+                let d = colors[i].x - colors[i - 1u].x;
+                var f = 1.0;
+                if (d > 0.0) { f = (t - colors[i - 1u].x) / d; }
+                rgb = mix(colors[i - 1u].yzw, colors[i].yzw, f);
+                break;
+            }
+        }
+    }
+    var a = opacity[0].y;
+    if (t > opacity[0].x) {
+        a = opacity[P.n_opacity - 1u].y;
+        for (var i = 1u; i < P.n_opacity; i = i + 1u) {
+            if (t <= opacity[i].x) {
+                let d = opacity[i].x - opacity[i - 1u].x;
+                var f = 1.0;
+                if (d > 0.0) { f = (t - opacity[i - 1u].x) / d; }
+                a = mix(opacity[i - 1u].y, opacity[i].y, f);
+                break;
+            }
+        }
+    }
+    return vec4<f32>(rgb, a);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+        @builtin(local_invocation_index) li: u32) {
+    let b = wg.y * P.bundles_x + wg.x;
+    let i = wg.x * P.bundle + lid.x;
+    let j = wg.y * P.bundle + lid.y;
+    let in_image = lid.x < P.bundle && lid.y < P.bundle && i < P.width && j < P.height;
+
+    // The ray through pixel (i, j), as Ray::through_pixel.
+    let x = 2.0 * (f32(i) + 0.5) / f32(P.width) - 1.0;
+    let y = 1.0 - 2.0 * (f32(j) + 0.5) / f32(P.height);
+    var o = vec3<f32>(0.0, 0.0, 0.0);
+    var d = vec3<f32>(x * P.tan_half * P.aspect, y * P.tan_half, 1.0);
+    if (P.parallel_scale > 0.0) {
+        o = vec3<f32>(x * P.parallel_scale * P.aspect, y * P.parallel_scale, 0.0);
+        d = vec3<f32>(0.0, 0.0, 1.0);
+    }
+    let dd = dot(d, d);
+    let dlen = sqrt(dd);
+
+    var color = vec3<f32>(0.0);
+    var trans = 1.0;
+    var depth_half = 1.0e30;
+    var done = !in_image;
+    var samples = 0u;
+
+    var weighted: array<f32, 64>;
+    var shepard: array<f32, 64>;
+    var density: array<f32, 64>;
+
+    let s0 = bundle_spans[b];
+    let s1 = bundle_spans[b + 1u];
+    for (var s = s0; s < s1; s = s + 1u) {
+        if (li == 0u) {
+            atomicStore(&all_done, 0u);
+        }
+        workgroupBarrier();
+        if (done) {
+            atomicAdd(&all_done, 1u);
+        }
+        workgroupBarrier();
+        if (li == 0u) {
+            done_flag = atomicLoad(&all_done);
+        }
+        let n_done = workgroupUniformLoad(&done_flag);
+        if (n_done == 64u) {
+            break;
+        }
+        let span = spans[s];
+        if (span.superpixel == 1u) {
+            if (!done) {
+                color = color + trans * span.sp.xyz;
+                trans = trans * span.sp.w;
+                if (trans < 0.5 && depth_half > 1.0e29) {
+                    depth_half = depths[span.k0];
+                }
+                if (trans < P.min_transmittance) {
+                    done = true;
+                }
+            }
+            continue;
+        }
+        let n = span.n;
+        for (var m = 0u; m < MAXS; m = m + 1u) {
+            weighted[m] = 0.0;
+            shepard[m] = 0.0;
+            density[m] = 0.0;
+        }
+        for (var c0 = 0u; c0 < span.ref_count; c0 = c0 + CHUNK) {
+            let cn = min(CHUNK, span.ref_count - c0);
+            workgroupBarrier();
+            if (li < cn) {
+                let pid = refs[span.ref_start + c0 + li];
+                cache_a[li] = particles[2u * pid];
+                cache_b[li] = particles[2u * pid + 1u];
+            }
+            workgroupBarrier();
+            if (!done) {
+                for (var k = 0u; k < cn; k = k + 1u) {
+                    let pa = cache_a[k];
+                    let pb = cache_b[k];
+                    let oc = o - pa.xyz;
+                    let bq = dot(d, oc);
+                    let cq = dot(oc, oc) - pa.w * pa.w;
+                    let disc = bq * bq - dd * cq;
+                    if (disc <= 0.0) {
+                        continue;
+                    }
+                    let sq = sqrt(disc);
+                    let z0 = (-bq - sq) / dd;
+                    let z1 = (-bq + sq) / dd;
+                    for (var m = 0u; m < n; m = m + 1u) {
+                        let z = depths[span.k0 + m * span.step];
+                        if (z < z0) {
+                            continue;
+                        }
+                        if (z > z1) {
+                            break;
+                        }
+                        let w = kernel_w(length(o + z * d - pa.xyz), pa.w);
+                        if (w > 0.0) {
+                            weighted[m] = weighted[m] + pb.x * pb.y * w;
+                            shepard[m] = shepard[m] + pb.x * w;
+                            density[m] = density[m] + pb.z * w;
+                        }
+                    }
+                }
+            }
+        }
+        if (!done) {
+            for (var m = 0u; m < n; m = m + 1u) {
+                if (shepard[m] <= 0.0) {
+                    continue;
+                }
+                var q = weighted[m] / shepard[m];
+                if (P.field == 1u) { q = weighted[m]; }
+                if (P.field == 2u) { q = density[m]; }
+                let za = depths[span.k0 + m * span.step];
+                let zb = depths[span.k0 + (m + 1u) * span.step];
+                let ca = tf_eval(q);
+                samples = samples + 1u;
+                var a = 1.0;
+                if (ca.w < 1.0) {
+                    a = 1.0 - pow(1.0 - ca.w, (zb - za) * dlen / P.unit_distance);
+                }
+                color = color + trans * a * ca.xyz;
+                trans = trans * (1.0 - a);
+                if (trans < 0.5 && depth_half > 1.0e29) {
+                    depth_half = za;
+                }
+                if (trans < P.min_transmittance) {
+                    done = true;
+                    break;
+                }
+            }
+        }
+    }
+    if (in_image) {
+        let idx = j * P.width + i;
+        out_rgba[idx] = vec4<f32>(color, 1.0 - trans);
+        out_depth[idx] = depth_half;
+        out_samples[idx] = samples;
+    }
+}
