@@ -91,9 +91,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
             tols.push(Some(e));
         }
     }
-    if a.sampling.backend != crate::view::Backend::Cpu {
-        bail!("fluidcast bench --backend gpu|auto is not implemented yet (GPU stage timings need timestamp queries); `fluidcast render --backend gpu --stats F` reports upload and ray casting times");
-    }
+    // With a GPU, every adaptive render is repeated on it and reported in a second table.
+    let gpu = crate::render::open_gpu(a.sampling.backend, crate::view::Mode::Adaptive)?;
     let base = a.sampling.params(&a.view, &a.particles)?;
     let base_tf = a.view.base_tf()?;
     let input = Input::open(&a.input)?;
@@ -103,7 +102,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         None => vec![0],
     };
     let spec = a.particles.spec()?;
-    let per_view = tols.len() + usize::from(!a.no_reference);
+    let per_view = tols.len() * (1 + usize::from(gpu.is_some())) + usize::from(!a.no_reference);
     let pb = ProgressBar::new((frames.len() * a.views * per_view) as u64);
     pb.set_style(
         ProgressStyle::with_template(
@@ -112,6 +111,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         .unwrap(),
     );
     let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
+    let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
+    let mut gpu_memory = 0u64;
     let mut reference = Runs::default();
     let mut setup = None;
     let mut particles_n = 0;
@@ -142,6 +143,18 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 let r = render_adaptive(&particles, None, &cam, tf, &prm)
                     .with_context(|| format!("rendering {}", file.display()))?;
                 runs[t].add(&r.stats);
+                if let Some(g) = &gpu {
+                    let rg = g
+                        .render_adaptive(&particles, None, &cam, tf, &prm)
+                        .with_context(|| format!("rendering {} on the GPU", file.display()))?;
+                    let (c, _) = compare(&r.image, &rg.image, 1e-3)?;
+                    let gr = &mut gpu_runs[t];
+                    gr.add(&rg.stats);
+                    gr.max_err = gr.max_err.max(c.max_abs);
+                    gr.frac_above.push(c.frac_above);
+                    gpu_memory = gpu_memory.max(rg.stats.gpu_memory_bytes);
+                    pb.inc(1);
+                }
                 match (&off_img, tol) {
                     (None, _) => off_img = Some(r.image),
                     (Some(off), Some(e)) => {
@@ -244,11 +257,56 @@ pub fn run(a: BenchArgs) -> Result<()> {
                          "max_error": r.max_err, "percent_pixels_above": share, "views_above": r.views_above,
                          "views": r.stages.len(), "samples": r.samples}));
     }
+    let mut gpu_rows = Vec::new();
+    if let Some(g) = &gpu {
+        println!(
+            "\nGPU ray casting on {} (grid and plan on the CPU, as above); GPU memory {:.1} MiB; medians in ms",
+            g.adapter,
+            gpu_memory as f64 / (1024.0 * 1024.0)
+        );
+        println!(
+            "{:<10} {:>8} {:>12} {:>12} {:>9} {:>14} {:>14} {:>16}",
+            "E_I",
+            "upload",
+            "raycast",
+            "GPU kernel",
+            "total",
+            "RC vs CPU RC",
+            "max |GPU-CPU|",
+            "% px > 1e-3"
+        );
+        for (t, tol) in tols.iter().enumerate() {
+            let (r, c) = (&gpu_runs[t], &runs[t]);
+            let name = tol.map_or("off".to_string(), |e| e.to_string());
+            let kernel = r.median("gpu_raycast");
+            let share = 100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len().max(1) as f64;
+            println!(
+                "{:<10} {:>8.1} {:>12.1} {:>12} {:>9.1} {:>14} {:>14.5} {:>16.4}",
+                name,
+                r.median("upload"),
+                r.median("raycast"),
+                if kernel.is_nan() {
+                    "n/a".to_string()
+                } else {
+                    format!("{kernel:.1}")
+                },
+                r.median("total"),
+                format!("{:.2}x", c.median("raycast") / r.median("raycast")),
+                r.max_err,
+                share
+            );
+            gpu_rows.push(json!({"error_tolerance": tol, "upload_ms": r.median("upload"), "raycast_ms": r.median("raycast"),
+                                 "gpu_kernel_ms": if kernel.is_nan() { None } else { Some(kernel) },
+                                 "total_ms": r.median("total"), "speedup_raycast_vs_cpu": c.median("raycast") / r.median("raycast"),
+                                 "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share}));
+        }
+    }
     if let Some(p) = &a.json {
         let v = json!({"input": a.input, "particles": particles_n, "width": base.width, "height": base.height,
                        "views": a.views, "frames": frames, "bundle": base.grid.bundle, "depth_samples": base.grid.depth_samples,
                        "relax": base.adaptive.relax, "superpixels": base.adaptive.superpixels,
-                       "surface_cells": base.adaptive.surface_cells, "rows": rows});
+                       "surface_cells": base.adaptive.surface_cells, "rows": rows,
+                       "gpu": gpu.as_ref().map(|g| json!({"adapter": g.adapter, "memory_bytes": gpu_memory, "rows": gpu_rows}))});
         std::fs::write(p, serde_json::to_string_pretty(&v)?)
             .with_context(|| format!("writing {}", p.display()))?;
         eprintln!("wrote {}", p.display());

@@ -210,6 +210,9 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
            "image": {"width": s.width, "height": s.height}});
     if let Some(p) = &s.plan {
         v["grid"] = json!({"bundles": s.bundles, "cells": s.cells, "particle_cell_pairs": s.pairs});
+        if s.gpu_memory_bytes > 0 {
+            v["gpu_memory_bytes"] = json!(s.gpu_memory_bytes);
+        }
         v["cells"] = json!({
             "full_rate": p.level_cells[0],
             "z_adapted_per_level": &p.level_cells[1..],

@@ -145,3 +145,58 @@ fn bench_prints_a_table_and_json() {
     assert!(adaptive["total_ms"].as_f64().unwrap() > 0.0);
     assert!(adaptive["max_error"].as_f64().unwrap() >= 0.0);
 }
+
+#[test]
+fn gpu_backend_from_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("fluidcast-gpu-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let s = sample();
+    // The reference renderer has no GPU path: a clear error, before any GPU is touched.
+    let (ok, _, err) = run(&[
+        "render",
+        s.to_str().unwrap(),
+        "--mode",
+        "reference",
+        "--backend",
+        "gpu",
+        "-o",
+        dir.join("x.png").to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("adaptive mode only"), "{err}");
+    let cpu = dir.join("cpu.exr");
+    render(&cpu, &["--backend", "cpu"]);
+    let gpu = dir.join("gpu.exr");
+    let s = sample();
+    let (ok, _, err) = run(&[
+        "render",
+        s.to_str().unwrap(),
+        "--array",
+        "velocity:mag",
+        "--size",
+        "64x48",
+        "--backend",
+        "gpu",
+        "-o",
+        gpu.to_str().unwrap(),
+    ]);
+    if !ok
+        && err.contains("no GPU adapter")
+        && std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1")
+    {
+        eprintln!("SKIPPED: {err}");
+        return;
+    }
+    assert!(ok, "{err}");
+    let (ok, out, err) = run(&[
+        "compare",
+        cpu.to_str().unwrap(),
+        gpu.to_str().unwrap(),
+        "--tolerance",
+        "0.001",
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let frac = v["frac_above"].as_f64().unwrap();
+    assert!(frac <= 1e-3, "GPU vs CPU: {out}");
+}

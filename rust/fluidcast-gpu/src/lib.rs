@@ -20,7 +20,6 @@ use fluidcast_render::{
 };
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
-use wgpu::util::DeviceExt;
 
 /// Why the GPU path could not run.
 #[derive(Debug, thiserror::Error)]
@@ -45,6 +44,10 @@ pub struct Gpu {
     layout: wgpu::BindGroupLayout,
     /// Adapter name and backend, for messages ("llvmpipe (Vulkan)").
     pub adapter: String,
+    /// GPU-side durations from timestamp queries, where the adapter supports them.
+    timestamps: Option<wgpu::QuerySet>,
+    /// Buffers kept between frames, by role; replaced only when too small.
+    buffers: std::sync::Mutex<std::collections::HashMap<&'static str, wgpu::Buffer>>,
 }
 
 #[repr(C)]
@@ -91,9 +94,15 @@ impl Gpu {
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("fluidcast"),
             required_limits: adapter.limits(),
+            required_features: if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
             ..Default::default()
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
@@ -116,13 +125,64 @@ impl Gpu {
             )));
         }
         let layout = pipeline.get_bind_group_layout(0);
+        let timestamps = timestamps.then(|| {
+            device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("raycast timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            })
+        });
         Ok(Gpu {
             device,
             queue,
             pipeline,
             layout,
             adapter: format!("{} ({:?})", info.name, info.backend),
+            timestamps,
+            buffers: Default::default(),
         })
+    }
+
+    /// True when the adapter reports GPU-side timings (timestamp queries): stage
+    /// `gpu_raycast` in the stats.
+    pub fn has_timestamps(&self) -> bool {
+        self.timestamps.is_some()
+    }
+
+    /// The buffer kept for `role`, at least `size` bytes, holding `data` (when given). Reused
+    /// across calls; replaced (grown by 1.5x) only when too small.
+    fn buffer(
+        &self,
+        role: &'static str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+        data: Option<&[u8]>,
+    ) -> wgpu::Buffer {
+        let size = size.max(16).next_multiple_of(16);
+        let mut cache = self.buffers.lock().expect("buffer cache");
+        let fits = cache.get(role).is_some_and(|b| b.size() >= size);
+        if !fits {
+            let b = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(role),
+                size: size + size / 2,
+                usage,
+                mapped_at_creation: false,
+            });
+            cache.insert(role, b);
+        }
+        let b = cache[role].clone();
+        if let Some(d) = data {
+            if !d.is_empty() {
+                self.queue.write_buffer(&b, 0, d);
+            }
+        }
+        b
+    }
+
+    /// Bytes of GPU buffers held between frames.
+    pub fn memory_bytes(&self) -> u64 {
+        let cache = self.buffers.lock().expect("buffer cache");
+        cache.values().map(|b| b.size()).sum()
     }
 
     /// Renders like [`fluidcast_render::render_adaptive`]: grid and plan on the CPU, ray
@@ -246,28 +306,17 @@ impl Gpu {
             tf_hi: tf.range.1 as f32,
             unit_distance: tf.unit_distance as f32,
         };
-        let storage = |label: &str, bytes: &[u8]| {
-            // wgpu refuses zero-sized bindings: pad empty lists with one element.
-            let data: Vec<u8> = if bytes.is_empty() {
-                vec![0; 16]
-            } else {
-                bytes.to_vec()
-            };
-            self.device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: &data,
-                    usage: wgpu::BufferUsages::STORAGE,
-                })
-        };
         let n_px = w as u64 * h as u64;
-        let uniform = self
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("params"),
-                contents: bytemuck::bytes_of(&uniforms),
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let storage = |role: &'static str, bytes: &[u8]| {
+            self.buffer(role, bytes.len() as u64, input, Some(bytes))
+        };
+        let uniform = self.buffer(
+            "params",
+            std::mem::size_of::<Params>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            Some(bytemuck::bytes_of(&uniforms)),
+        );
         let b_parts = storage("particles", bytemuck::cast_slice(&parts));
         let b_depths = storage("depths", bytemuck::cast_slice(&zs));
         let b_spans = storage("spans", bytemuck::cast_slice(&spans));
@@ -275,24 +324,14 @@ impl Gpu {
         let b_refs = storage("refs", bytemuck::cast_slice(&refs));
         let b_colors = storage("colors", bytemuck::cast_slice(&colors));
         let b_opacity = storage("opacity", bytemuck::cast_slice(&opacity));
-        let out_size = |bytes: u64| wgpu::BufferDescriptor {
-            label: None,
-            size: bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        };
-        let b_rgba = self.device.create_buffer(&out_size(16 * n_px));
-        let b_depth = self.device.create_buffer(&out_size(4 * n_px));
-        let read_size = |bytes: u64| wgpu::BufferDescriptor {
-            label: None,
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        };
-        let r_rgba = self.device.create_buffer(&read_size(16 * n_px));
-        let r_depth = self.device.create_buffer(&read_size(4 * n_px));
-        let b_samples = self.device.create_buffer(&out_size(4 * n_px));
-        let r_samples = self.device.create_buffer(&read_size(4 * n_px));
+        let out = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let b_rgba = self.buffer("rgba", 16 * n_px, out, None);
+        let b_depth = self.buffer("depth", 4 * n_px, out, None);
+        let b_samples = self.buffer("samples", 4 * n_px, out, None);
+        let r_rgba = self.buffer("rgba readback", 16 * n_px, read, None);
+        let r_depth = self.buffer("depth readback", 4 * n_px, read, None);
+        let r_samples = self.buffer("samples readback", 4 * n_px, read, None);
         let entries: Vec<wgpu::BindGroupEntry> = [
             &uniform, &b_parts, &b_depths, &b_spans, &b_bspans, &b_refs, &b_colors, &b_opacity,
             &b_rgba, &b_depth, &b_samples,
@@ -316,19 +355,47 @@ impl Gpu {
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("raycast"),
+                timestamp_writes: self.timestamps.as_ref().map(|q| {
+                    wgpu::ComputePassTimestampWrites {
+                        query_set: q,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }
+                }),
+            });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(grid.bundles_x, grid.bundles_y, 1);
         }
+        let ts = self.timestamps.as_ref().map(|q| {
+            let resolve = self.buffer(
+                "timestamps",
+                16,
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                None,
+            );
+            let r = self.buffer("timestamps readback", 16, read, None);
+            enc.resolve_query_set(q, 0..2, &resolve, 0);
+            enc.copy_buffer_to_buffer(&resolve, 0, &r, 0, 16);
+            r
+        });
         enc.copy_buffer_to_buffer(&b_rgba, 0, &r_rgba, 0, 16 * n_px);
         enc.copy_buffer_to_buffer(&b_depth, 0, &r_depth, 0, 4 * n_px);
         enc.copy_buffer_to_buffer(&b_samples, 0, &r_samples, 0, 4 * n_px);
         self.queue.submit([enc.finish()]);
-        let rgba: Vec<[f32; 4]> = read_back(&self.device, &r_rgba)?;
-        let depth: Vec<f32> = read_back(&self.device, &r_depth)?;
-        let samples: Vec<u32> = read_back(&self.device, &r_samples)?;
+        let rgba: Vec<[f32; 4]> = read_back(&self.device, &r_rgba, 16 * n_px)?;
+        let depth: Vec<f32> = read_back(&self.device, &r_depth, 4 * n_px)?;
+        let samples: Vec<u32> = read_back(&self.device, &r_samples, 4 * n_px)?;
         stats.stages.push(("raycast", ms(t2)));
+        if let Some(r) = ts {
+            let t: Vec<u64> = read_back(&self.device, &r, 16)?;
+            let period = self.queue.get_timestamp_period() as f64;
+            let ns = t[1].saturating_sub(t[0]) as f64 * period;
+            stats.stages.push(("gpu_raycast", ns * 1e-6));
+        }
+        stats.gpu_memory_bytes = self.memory_bytes();
 
         // Bundles with no cells were not written by the shader: transparent, depth +inf.
         for b in 0..grid.bundle_count() {
@@ -360,8 +427,13 @@ impl Gpu {
     }
 }
 
-fn read_back<T: Pod>(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
-    let slice = buf.slice(..);
+/// The first `bytes` of a mappable buffer (buffers are reused, so they may be larger).
+fn read_back<T: Pod>(
+    device: &wgpu::Device,
+    buf: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<T>, GpuError> {
+    let slice = buf.slice(..bytes);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);

@@ -129,6 +129,8 @@ pub struct RenderStats {
     pub cells: u64,
     pub pairs: u64,
     pub plan: Option<PlanStats>,
+    /// GPU backend only: bytes of GPU buffers held (kept and reused across frames).
+    pub gpu_memory_bytes: u64,
 }
 
 impl RenderStats {
