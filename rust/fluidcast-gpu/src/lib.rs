@@ -15,9 +15,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use fluidcast_image::Image;
-use fluidcast_render::{
-    ms, plan_adaptive, plan_aovs, AdaptiveRender, RenderError, RenderParams, SURFACE_THRESHOLD,
-};
+use fluidcast_render::{ms, plan_adaptive, plan_aovs, AdaptiveRender, RenderError, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -203,15 +201,6 @@ impl Gpu {
             return Err(GpuError::DepthLimit);
         }
         let t0 = Instant::now();
-        let computed;
-        let surface = match surface {
-            Some(s) => Some(s),
-            None if params.adaptive.uses_surface_cells() => {
-                computed = particles.surface_flags(SURFACE_THRESHOLD);
-                Some(computed.as_slice())
-            }
-            None => None,
-        };
         let planned = plan_adaptive(particles, surface, camera, tf, params)?;
         let (grid, plan, mut stats) = (planned.grid, planned.plan, planned.stats);
         let (w, h) = (params.width, params.height);
