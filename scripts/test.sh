@@ -6,6 +6,9 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
+# Mesa's Vulkan and Qt want a runtime directory; CI shells often have none.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/fluidcast-runtime-$(id -u)}"
+mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 bash scripts/setup_system.sh
 bash scripts/setup_python.sh
 cargo build --bin fluidcast
