@@ -28,8 +28,6 @@ pub enum GpuError {
     Device(String),
     #[error("the GPU ray caster supports ray bundles of at most 8x8 pixels (--bundle {0})")]
     BundleTooLarge(u32),
-    #[error("the GPU ray caster does not take a depth limit (opaque geometry) yet")]
-    DepthLimit,
     #[error(transparent)]
     Render(#[from] RenderError),
 }
@@ -67,6 +65,8 @@ struct Params {
     tf_lo: f32,
     tf_hi: f32,
     unit_distance: f32,
+    has_limit: u32,
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -197,9 +197,6 @@ impl Gpu {
         if params.grid.bundle > 8 {
             return Err(GpuError::BundleTooLarge(params.grid.bundle));
         }
-        if params.depth_limit.is_some() {
-            return Err(GpuError::DepthLimit);
-        }
         let t0 = Instant::now();
         let planned = plan_adaptive(particles, surface, camera, tf, params)?;
         let (grid, plan, mut stats) = (planned.grid, planned.plan, planned.stats);
@@ -294,6 +291,8 @@ impl Gpu {
             tf_lo: tf.range.0 as f32,
             tf_hi: tf.range.1 as f32,
             unit_distance: tf.unit_distance as f32,
+            has_limit: params.depth_limit.is_some() as u32,
+            pad: [0; 3],
         };
         let n_px = w as u64 * h as u64;
         let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
@@ -313,6 +312,9 @@ impl Gpu {
         let b_refs = storage("refs", bytemuck::cast_slice(&refs));
         let b_colors = storage("colors", bytemuck::cast_slice(&colors));
         let b_opacity = storage("opacity", bytemuck::cast_slice(&opacity));
+        // f32::INFINITY is fine in WGSL storage (the shader only compares against it).
+        let limits: &[f32] = params.depth_limit.as_deref().unwrap_or(&[]);
+        let b_limit = storage("depth limit", bytemuck::cast_slice(limits));
         let out = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
         let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
         let b_rgba = self.buffer("rgba", 16 * n_px, out, None);
@@ -323,7 +325,7 @@ impl Gpu {
         let r_samples = self.buffer("samples readback", 4 * n_px, read, None);
         let entries: Vec<wgpu::BindGroupEntry> = [
             &uniform, &b_parts, &b_depths, &b_spans, &b_bspans, &b_refs, &b_colors, &b_opacity,
-            &b_rgba, &b_depth, &b_samples,
+            &b_rgba, &b_depth, &b_samples, &b_limit,
         ]
         .iter()
         .enumerate()

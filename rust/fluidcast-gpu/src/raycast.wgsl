@@ -21,6 +21,10 @@ struct Params {
     tf_lo: f32,
     tf_hi: f32,
     unit_distance: f32,
+    has_limit: u32,      // 1: depth_limit holds a view depth per pixel (opaque geometry)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 struct Span {
@@ -46,6 +50,7 @@ struct Span {
 @group(0) @binding(8) var<storage, read_write> out_rgba: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(10) var<storage, read_write> out_samples: array<u32>;
+@group(0) @binding(11) var<storage, read> depth_limit: array<f32>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
@@ -157,6 +162,11 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     var depth_half = 1.0e30;
     var done = !in_image;
     var samples = 0u;
+    // Rays stop at opaque geometry (RenderParams::depth_limit), as the CPU Compositor.
+    var limit = 3.0e38;
+    if (P.has_limit == 1u && in_image) {
+        limit = depth_limit[j * P.width + i];
+    }
 
     var weighted: array<f32, 64>;
     var shepard: array<f32, 64>;
@@ -183,13 +193,29 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         let span = spans[s];
         if (span.superpixel == 1u) {
             if (!done) {
-                color = color + trans * span.sp.xyz;
-                trans = trans * span.sp.w;
-                if (trans < 0.5 && depth_half > 1.0e29) {
-                    depth_half = depths[span.k0];
-                }
-                if (trans < P.min_transmittance) {
+                let z0 = depths[span.k0];
+                let z1 = depths[span.k0 + span.n * span.step];
+                var it = span.sp;
+                if (z0 >= limit) {
                     done = true;
+                } else {
+                    if (z1 > limit) {
+                        // Cut as a homogeneous segment: T^f, I (1 - T^f) / (1 - T).
+                        let f = (limit - z0) / (z1 - z0);
+                        let t = pow(it.w, f);
+                        var sc = f;
+                        if (it.w < 1.0) { sc = (1.0 - t) / (1.0 - it.w); }
+                        it = vec4<f32>(it.xyz * sc, t);
+                        done = true;
+                    }
+                    color = color + trans * it.xyz;
+                    trans = trans * it.w;
+                    if (trans < 0.5 && depth_half > 1.0e29) {
+                        depth_half = z0;
+                    }
+                    if (trans < P.min_transmittance) {
+                        done = true;
+                    }
                 }
             }
             continue;
@@ -250,7 +276,11 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 if (P.field == 1u) { q = weighted[m]; }
                 if (P.field == 2u) { q = density[m]; }
                 let za = depths[span.k0 + m * span.step];
-                let zb = depths[span.k0 + (m + 1u) * span.step];
+                let zb = min(depths[span.k0 + (m + 1u) * span.step], limit);
+                if (za >= limit) {
+                    done = true;
+                    break;
+                }
                 let ca = tf_eval(q);
                 samples = samples + 1u;
                 var a = 1.0;

@@ -209,3 +209,57 @@ fn gpu_matches_cpu_on_the_shared_double_dam_break() {
         );
     }
 }
+
+#[test]
+fn gpu_matches_cpu_with_opaque_geometry() {
+    let Some(g) = gpu() else { return };
+    let p = cloud(4000, 5);
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    tf.unit_distance = 0.15;
+    let cam = Camera {
+        position: [0.3, 0.4, 2.2],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let (w, h) = (96u32, 72u32);
+    // A tilted plane through the cloud, and a corner with nothing opaque.
+    let limit: Vec<f32> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            if i < 16 && j < 16 {
+                f32::INFINITY
+            } else {
+                1.8 + 0.8 * i as f32 / w as f32
+            }
+        })
+        .collect();
+    for (name, adaptive) in [
+        (
+            "off",
+            PlanParams {
+                tolerance: None,
+                ..Default::default()
+            },
+        ),
+        ("0.004", PlanParams::default()),
+        ("strict", PlanParams::default().strict()),
+    ] {
+        let prm = RenderParams {
+            width: w,
+            height: h,
+            adaptive,
+            depth_limit: Some(std::sync::Arc::from(limit.clone())),
+            ..Default::default()
+        };
+        let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
+        eprintln!("depth limit {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
+        assert!(
+            max <= 0.05 && frac <= 1e-3,
+            "{name}: max {max}, {frac} above 1e-3"
+        );
+    }
+}

@@ -113,7 +113,9 @@ impl Compositor {
             return;
         }
         let (rgb, alpha) = tf.eval(q);
-        let a = tf.step_alpha(alpha, (z1.min(self.limit) - z0) * dlen);
+        // The step is cut at the limit here, so `add` must see it ending there (not cut again).
+        let z1 = z1.min(self.limit);
+        let a = tf.step_alpha(alpha, (z1 - z0) * dlen);
         self.samples += 1;
         self.add(
             [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
