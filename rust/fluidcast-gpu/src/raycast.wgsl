@@ -168,9 +168,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         limit = depth_limit[j * P.width + i];
     }
 
-    var weighted: array<f32, 64>;
-    var shepard: array<f32, 64>;
-    var density: array<f32, 64>;
+    var weighted: array<f32, MAXS>;
+    var shepard: array<f32, MAXS>;
+    var density: array<f32, MAXS>;
 
     let s0 = bundle_spans[b];
     let s1 = bundle_spans[b + 1u];
@@ -221,7 +221,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             continue;
         }
         let n = span.n;
-        for (var m = 0u; m < MAXS; m = m + 1u) {
+        for (var m = 0u; m < n; m = m + 1u) { // only samples 0..n are used
             weighted[m] = 0.0;
             shepard[m] = 0.0;
             density[m] = 0.0;

@@ -43,6 +43,31 @@ fn cloud(n: usize, seed: u32) -> Particles {
     p
 }
 
+/// Viridis over the cloud's values [-0.5, 1], opacity per 0.15 world units.
+fn cloud_tf() -> TransferFunction {
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    tf.unit_distance = 0.15;
+    tf
+}
+
+/// Full rate, the default relaxed plan at E_I = 0.004, and the strict plan.
+fn modes() -> [(&'static str, PlanParams); 3] {
+    [
+        (
+            "off",
+            PlanParams {
+                tolerance: None,
+                ..Default::default()
+            },
+        ),
+        ("0.004", PlanParams::default()),
+        ("strict 0.004", PlanParams::default().strict()),
+    ]
+}
+
 /// (max abs, RMSE, share of pixels above 1e-3) between the CPU and GPU images.
 fn compare(
     g: &Gpu,
@@ -66,11 +91,7 @@ fn compare(
 fn gpu_matches_cpu_for_every_mode_kernel_and_field() {
     let Some(g) = gpu() else { return };
     let p = cloud(4000, 11);
-    let mut tf = TransferFunction::preset("viridis")
-        .unwrap()
-        .with_range(-0.5, 1.0)
-        .unwrap();
-    tf.unit_distance = 0.15;
+    let tf = cloud_tf();
     let persp = Camera {
         position: [0.4, 0.6, 2.4],
         focal_point: [0.0; 3],
@@ -82,17 +103,6 @@ fn gpu_matches_cpu_for_every_mode_kernel_and_field() {
         parallel_scale: 0.7,
         ..persp.clone()
     };
-    let modes = [
-        (
-            "off",
-            PlanParams {
-                tolerance: None,
-                ..Default::default()
-            },
-        ),
-        ("0.004", PlanParams::default()),
-        ("strict 0.004", PlanParams::default().strict()),
-    ];
     // Tolerance. The GPU works in f32, the CPU in f64, summing in the same order. Nearly all
     // pixels agree to 1e-3. The exception: a sample whose only contributing particle lies
     // within rounding of its support edge exists in one precision and not the other, and with
@@ -100,7 +110,7 @@ fn gpu_matches_cpu_for_every_mode_kernel_and_field() {
     // kernel, cut at 3σ, jumps there), so that pixel moves by up to one step's opacity.
     // Allowed: at most 0.1 % of pixels above 1e-3, none above 0.05.
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
-    for (name, adaptive) in modes {
+    for (name, adaptive) in modes() {
         for (cam, cname) in [(&persp, "perspective"), (&par, "parallel")] {
             for kernel in [
                 Kernel::CubicSpline,
@@ -182,17 +192,7 @@ fn gpu_matches_cpu_on_the_shared_double_dam_break() {
     cam.azimuth(30.0);
     cam.elevation(25.0);
     cam.orthogonalize_view_up();
-    for (name, adaptive) in [
-        (
-            "off",
-            PlanParams {
-                tolerance: None,
-                ..Default::default()
-            },
-        ),
-        ("0.004", PlanParams::default()),
-        ("strict", PlanParams::default().strict()),
-    ] {
+    for (name, adaptive) in modes() {
         let prm = RenderParams {
             width: 160,
             height: 120,
@@ -214,11 +214,7 @@ fn gpu_matches_cpu_on_the_shared_double_dam_break() {
 fn gpu_matches_cpu_with_opaque_geometry() {
     let Some(g) = gpu() else { return };
     let p = cloud(4000, 5);
-    let mut tf = TransferFunction::preset("viridis")
-        .unwrap()
-        .with_range(-0.5, 1.0)
-        .unwrap();
-    tf.unit_distance = 0.15;
+    let tf = cloud_tf();
     let cam = Camera {
         position: [0.3, 0.4, 2.2],
         focal_point: [0.0; 3],
@@ -237,17 +233,7 @@ fn gpu_matches_cpu_with_opaque_geometry() {
             }
         })
         .collect();
-    for (name, adaptive) in [
-        (
-            "off",
-            PlanParams {
-                tolerance: None,
-                ..Default::default()
-            },
-        ),
-        ("0.004", PlanParams::default()),
-        ("strict", PlanParams::default().strict()),
-    ] {
+    for (name, adaptive) in modes() {
         let prm = RenderParams {
             width: w,
             height: h,
