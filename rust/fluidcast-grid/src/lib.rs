@@ -85,15 +85,26 @@ pub fn view_particles(particles: &Particles, frame: &ViewFrame) -> ViewParticles
         .iter()
         .map(|p| p.c[2] - p.h)
         .fold(f64::INFINITY, f64::min);
-    let perspective = frame.parallel.is_none();
-    let range = if list.is_empty() || (perspective && zmax <= 0.0) {
+    let range = if list.is_empty() {
+        None
+    } else {
+        depth_range(zmin, zmax, frame.parallel.is_none())
+    };
+    ViewParticles { list, range }
+}
+
+/// `[near, far]` from the smallest and largest view depth of any support (`zmin`, `zmax`):
+/// `None` when a perspective view has nothing in front of the camera; near is clamped to
+/// far·10⁻⁴ for a perspective view so that the log spacing stays finite. Shared with the GPU
+/// grid, which reduces zmin/zmax on the device.
+pub fn depth_range(zmin: f64, zmax: f64, perspective: bool) -> Option<(f64, f64)> {
+    if !(zmin.is_finite() && zmax.is_finite()) || (perspective && zmax <= 0.0) {
         None
     } else if perspective {
         Some((zmin.max(zmax * 1e-4), zmax))
     } else {
         Some((zmin, zmax))
-    };
-    ViewParticles { list, range }
+    }
 }
 
 /// Pixel rectangle `[x0, x1) × [y0, y1)` (rows from the top) that contains every pixel

@@ -87,6 +87,19 @@ impl PlanParams {
         self.tolerance.is_some() && self.surface_cells && self.relax > 0.0
     }
 
+    /// Checks the ranges: E_I and E_relax in [0, 1].
+    pub fn validate(&self) -> Result<(), PlanError> {
+        if let Some(e) = self.tolerance {
+            if !(0.0..=1.0).contains(&e) {
+                return Err(PlanError::Tolerance(e));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.relax) {
+            return Err(PlanError::Relax(self.relax));
+        }
+        Ok(())
+    }
+
     /// The strict mode: no relaxation and no super-pixels, so the bound is a guarantee.
     pub fn strict(mut self) -> Self {
         self.relax = 0.0;
@@ -198,14 +211,7 @@ impl SamplingPlan {
         params: &PlanParams,
         field: &FieldParams,
     ) -> Result<SamplingPlan, PlanError> {
-        if let Some(e) = params.tolerance {
-            if !(0.0..=1.0).contains(&e) {
-                return Err(PlanError::Tolerance(e));
-            }
-        }
-        if !(0.0..=1.0).contains(&params.relax) {
-            return Err(PlanError::Relax(params.relax));
-        }
+        params.validate()?;
         if let Some(s) = surface {
             if s.len() != grid.particles.len() {
                 return Err(PlanError::SurfaceFlags(s.len(), grid.particles.len()));

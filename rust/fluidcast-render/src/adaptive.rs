@@ -2,7 +2,7 @@ use std::time::Instant;
 
 use fluidcast_grid::{PerspectiveGrid, Ray, ViewParticle};
 use fluidcast_image::Image;
-use fluidcast_plan::{FieldParams, SamplingPlan};
+use fluidcast_plan::{BundleSummary, FieldParams, SamplingPlan};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use rayon::prelude::*;
@@ -215,15 +215,28 @@ pub fn plan_aovs(
     width: u32,
     height: u32,
 ) -> Vec<(String, Vec<f32>)> {
-    if plan.summaries.is_empty() {
+    bundle_aovs(&plan.summaries, grid.params.bundle, width, height)
+}
+
+/// The per-pixel AOVs `error_bound`, `level` and `superpixel` from per-bundle summaries
+/// (row-major bundles of `bundle × bundle` pixels, as [`PerspectiveGrid::bundle`]); none
+/// without summaries (no error analysis).
+pub fn bundle_aovs(
+    summaries: &[BundleSummary],
+    bundle: u32,
+    width: u32,
+    height: u32,
+) -> Vec<(String, Vec<f32>)> {
+    if summaries.is_empty() {
         return Vec::new();
     }
     let n = width as usize * height as usize;
+    let bx = width.div_ceil(bundle);
     let mut aov = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
-    for (b, s) in plan.summaries.iter().enumerate() {
-        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-        for j in y0..y1 {
-            for i in x0..x1 {
+    for (b, s) in summaries.iter().enumerate() {
+        let (x0, y0) = ((b as u32 % bx) * bundle, (b as u32 / bx) * bundle);
+        for j in y0..(y0 + bundle).min(height) {
+            for i in x0..(x0 + bundle).min(width) {
                 let idx = j as usize * width as usize + i as usize;
                 aov[0][idx] = s.predicted_error;
                 aov[1][idx] = s.mean_level;

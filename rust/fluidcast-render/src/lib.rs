@@ -25,10 +25,11 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub use adaptive::{
-    plan_adaptive, plan_aovs, render_adaptive, AdaptivePlan, AdaptiveRender, SURFACE_THRESHOLD,
+    bundle_aovs, plan_adaptive, plan_aovs, render_adaptive, AdaptivePlan, AdaptiveRender,
+    SURFACE_THRESHOLD,
 };
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
-pub use fluidcast_plan::{PlanError, PlanParams, PlanStats};
+pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats};
 pub use reference::render_reference;
 
 use fluidcast_sph::{FieldKind, Kernel};
@@ -145,7 +146,8 @@ pub fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-fn validate(params: &RenderParams) -> Result<(), RenderError> {
+/// Checks the image size and the parameters every renderer shares (the GPU path too).
+pub fn validate(params: &RenderParams) -> Result<(), RenderError> {
     let (w, h) = (params.width, params.height);
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE || (w as u64 * h as u64) > MAX_PIXELS {
         return Err(RenderError::ImageSize(w, h));
