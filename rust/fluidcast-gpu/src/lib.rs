@@ -1,23 +1,36 @@
-//! The adaptive renderer's ray casting stage on the GPU (wgpu compute, WGSL).
+//! The adaptive renderer of Hochstetter et al. 2016 on the GPU (wgpu compute, WGSL): every
+//! stage of [`fluidcast_render::render_adaptive`], in single precision, with the CPU crates as
+//! its mirror.
 //!
-//! Status: only the last stage runs on the GPU. The sparse perspective grid and the sampling
-//! plan are built on the CPU ([`fluidcast_render::plan_adaptive`]); this crate uploads the
-//! view-space particles, the sample depths, each bundle's spans with their merged particle
-//! lists and the transfer function, and casts one workgroup per ray bundle, one invocation
-//! per ray, the span's particles cached in workgroup memory (Hochstetter et al. 2016,
-//! Alg. 2). It mirrors `fluidcast-render`'s CPU caster in single precision, so the two can be
-//! compared image to image.
+//! | stage | shader | CPU mirror |
+//! |---|---|---|
+//! | particles to view space, depth range | `grid.wgsl: view` | `fluidcast_grid::view_particles` |
+//! | (cell, particle) pairs with the merge bit | `grid.wgsl: footprint, emit` + `scan.wgsl` | `PerspectiveGrid::build` |
+//! | radix sort of the pairs | `sort.wgsl` | the counting sort + per-bundle sort there |
+//! | cells and bundle cell ranges | `grid.wgsl: cell_starts, make_cells, bundle_ranges` | `PerspectiveGrid::cells` |
+//! | error analysis per cell | `plan.wgsl: analyse` | `fluidcast_plan` `cell_bounds` |
+//! | greedy levels, super-pixels, merging per bundle | `plan.wgsl: greedy` | `plan_bundle` |
+//! | bundle-coherent ray casting (Alg. 2) | `raycast.wgsl` | `render_adaptive`'s caster |
+//!
+//! The host reads back three numbers on the way (the depth range, to place the depth samples
+//! exactly as the CPU does with [`fluidcast_grid::SampleDepths`]; the pair count and the cell
+//! count, to size buffers and dispatches). Buffers are kept between frames and grow only when
+//! a frame needs more. [`Gpu::render_planned`] runs the last stage alone on a grid and plan
+//! built on the CPU, and [`Gpu::render_with_dump`] returns the GPU's grid and plan, so each
+//! stage can be tested against its mirror.
 //!
 //! Runs headless on any wgpu adapter, Mesa's lavapipe (CPU Vulkan) included; [`Gpu::new`]
 //! says why when there is none.
 
-use std::time::Instant;
+mod stages;
 
-use bytemuck::{Pod, Zeroable};
-use fluidcast_image::Image;
-use fluidcast_render::{ms, plan_adaptive, plan_aovs, AdaptiveRender, RenderError, RenderParams};
-use fluidcast_sph::{FieldKind, Kernel, Particles};
-use fluidcast_view::{Camera, TransferFunction};
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use bytemuck::Pod;
+use fluidcast_render::{RenderError, RenderStats};
+
+pub use stages::{GpuDump, GpuRender};
 
 /// Why the GPU path could not run.
 #[derive(Debug, thiserror::Error)]
@@ -26,64 +39,63 @@ pub enum GpuError {
     NoAdapter(String),
     #[error("GPU device: {0}")]
     Device(String),
-    #[error("the GPU ray caster supports ray bundles of at most 8x8 pixels (--bundle {0})")]
+    #[error("the GPU renderer supports ray bundles of at most 8x8 pixels (--bundle {0})")]
     BundleTooLarge(u32),
+    #[error("the view needs {0} particle-cell pairs, more than the GPU renderer's limit of {1}; render a smaller image, fewer particles or use --backend cpu")]
+    TooManyPairs(u64, u64),
+    #[error("the view has {0} bundles x {1} cells, too many for the GPU grid's 32-bit cell keys; render a smaller image or lower --sampling")]
+    GridTooLarge(u64, u64),
+    #[error("{0} particles are more than the GPU renderer takes ({1})")]
+    TooManyParticles(usize, u64),
     #[error(transparent)]
     Render(#[from] RenderError),
 }
 
-/// A wgpu device with the ray casting pipeline compiled.
+/// The compute pipelines, one per shader entry point.
+struct Pipelines {
+    view: wgpu::ComputePipeline,
+    footprint: wgpu::ComputePipeline,
+    emit: wgpu::ComputePipeline,
+    cell_starts: wgpu::ComputePipeline,
+    make_cells: wgpu::ComputePipeline,
+    bundle_ranges: wgpu::ComputePipeline,
+    scan_blocks: wgpu::ComputePipeline,
+    add_sums: wgpu::ComputePipeline,
+    histogram: wgpu::ComputePipeline,
+    scatter: wgpu::ComputePipeline,
+    analyse: wgpu::ComputePipeline,
+    greedy: wgpu::ComputePipeline,
+    raycast: wgpu::ComputePipeline,
+}
+
+/// A wgpu device with the renderer's pipelines compiled, and the buffers it keeps between
+/// frames.
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
+    pipes: Pipelines,
     /// Adapter name and backend, for messages ("llvmpipe (Vulkan)").
     pub adapter: String,
     /// GPU-side durations from timestamp queries, where the adapter supports them.
     timestamps: Option<wgpu::QuerySet>,
     /// Buffers kept between frames, by role; replaced only when too small.
-    buffers: std::sync::Mutex<std::collections::HashMap<&'static str, wgpu::Buffer>>,
+    buffers: Mutex<HashMap<&'static str, wgpu::Buffer>>,
+    /// One frame at a time: the kept buffers are shared.
+    frame_lock: Mutex<()>,
+    /// Largest storage buffer binding (bytes).
+    max_binding: u64,
 }
 
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct Params {
-    width: u32,
-    height: u32,
-    bundles_x: u32,
-    bundle: u32,
-    aspect: f32,
-    tan_half: f32,
-    parallel_scale: f32,
-    min_transmittance: f32,
-    field: u32,
-    kernel: u32,
-    gauss_norm: f32,
-    n_colors: u32,
-    n_opacity: u32,
-    tf_lo: f32,
-    tf_hi: f32,
-    unit_distance: f32,
-    has_limit: u32,
-    pad: [u32; 3],
-}
+/// Most timestamp queries one frame writes (two per timed pass).
+const QUERIES: u32 = 32;
 
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuSpan {
-    k0: u32,
-    n: u32,
-    step: u32,
-    ref_start: u32,
-    ref_count: u32,
-    superpixel: u32,
-    pad: [u32; 2],
-    sp: [f32; 4],
-}
+/// Storage that shaders write and the host may fill or read back.
+const RW: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+    .union(wgpu::BufferUsages::COPY_DST)
+    .union(wgpu::BufferUsages::COPY_SRC);
 
 impl Gpu {
-    /// Opens the default adapter (high performance preferred) and compiles the shader.
+    /// Opens the default adapter (high performance preferred) and compiles the shaders.
     pub fn new() -> Result<Gpu, GpuError> {
         let instance = wgpu::Instance::default();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
@@ -93,9 +105,10 @@ impl Gpu {
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("fluidcast"),
-            required_limits: adapter.limits(),
+            required_limits: limits.clone(),
             required_features: if timestamps {
                 wgpu::Features::TIMESTAMP_QUERY
             } else {
@@ -105,44 +118,77 @@ impl Gpu {
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("raycast"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("raycast.wgsl").into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("raycast"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let common = include_str!("shaders/common.wgsl");
+        let module = |name: &str, src: String| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            })
+        };
+        let grid = module(
+            "grid",
+            format!("{common}\n{}", include_str!("shaders/grid.wgsl")),
+        );
+        let plan = module(
+            "plan",
+            format!("{common}\n{}", include_str!("shaders/plan.wgsl")),
+        );
+        let raycast = module(
+            "raycast",
+            format!("{common}\n{}", include_str!("shaders/raycast.wgsl")),
+        );
+        let scan = module("scan", include_str!("shaders/scan.wgsl").to_string());
+        let sort = module("sort", include_str!("shaders/sort.wgsl").to_string());
+        let pipe = |m: &wgpu::ShaderModule, entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: m,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let pipes = Pipelines {
+            view: pipe(&grid, "view"),
+            footprint: pipe(&grid, "footprint"),
+            emit: pipe(&grid, "emit"),
+            cell_starts: pipe(&grid, "cell_starts"),
+            make_cells: pipe(&grid, "make_cells"),
+            bundle_ranges: pipe(&grid, "bundle_ranges"),
+            scan_blocks: pipe(&scan, "scan_blocks"),
+            add_sums: pipe(&scan, "add_sums"),
+            histogram: pipe(&sort, "histogram"),
+            scatter: pipe(&sort, "scatter"),
+            analyse: pipe(&plan, "analyse"),
+            greedy: pipe(&plan, "greedy"),
+            raycast: pipe(&raycast, "main"),
+        };
         if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Device(format!(
-                "compiling the ray casting shader: {e}"
-            )));
+            return Err(GpuError::Device(format!("compiling the shaders: {e}")));
         }
-        let layout = pipeline.get_bind_group_layout(0);
         let timestamps = timestamps.then(|| {
             device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("raycast timestamps"),
+                label: Some("stage timestamps"),
                 ty: wgpu::QueryType::Timestamp,
-                count: 2,
+                count: QUERIES,
             })
         });
         Ok(Gpu {
             device,
             queue,
-            pipeline,
-            layout,
+            pipes,
             adapter: format!("{} ({:?})", info.name, info.backend),
             timestamps,
             buffers: Default::default(),
+            frame_lock: Mutex::new(()),
+            max_binding: (limits.max_storage_buffer_binding_size as u64)
+                .min(limits.max_buffer_size),
         })
     }
 
-    /// True when the adapter reports GPU-side timings (timestamp queries): stage
-    /// `gpu_raycast` in the stats.
+    /// True when the adapter reports GPU-side timings (timestamp queries): stages named
+    /// `gpu_*` in the stats.
     pub fn has_timestamps(&self) -> bool {
         self.timestamps.is_some()
     }
@@ -160,9 +206,12 @@ impl Gpu {
         let mut cache = self.buffers.lock().expect("buffer cache");
         let fits = cache.get(role).is_some_and(|b| b.size() >= size);
         if !fits {
+            let grown = (size + size / 2)
+                .min(self.max_binding.max(size))
+                .next_multiple_of(16);
             let b = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(role),
-                size: size + size / 2,
+                size: grown,
                 usage,
                 mapped_at_creation: false,
             });
@@ -177,276 +226,75 @@ impl Gpu {
         b
     }
 
+    /// A storage buffer for `role` holding `data`.
+    fn upload<T: Pod>(&self, role: &'static str, data: &[T]) -> wgpu::Buffer {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        self.buffer(role, bytes.len() as u64, RW, Some(bytes))
+    }
+
     /// Bytes of GPU buffers held between frames.
     pub fn memory_bytes(&self) -> u64 {
         let cache = self.buffers.lock().expect("buffer cache");
         cache.values().map(|b| b.size()).sum()
     }
 
-    /// Renders like [`fluidcast_render::render_adaptive`]: grid and plan on the CPU, ray
-    /// casting here. Stage timings: `grid`, `adapt`, `upload`, `raycast` (dispatch to
-    /// read-back), `total`.
-    pub fn render_adaptive(
-        &self,
-        particles: &Particles,
-        surface: Option<&[bool]>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        params: &RenderParams,
-    ) -> Result<AdaptiveRender, GpuError> {
-        if params.grid.bundle > 8 {
-            return Err(GpuError::BundleTooLarge(params.grid.bundle));
+    /// Copies the first `bytes` of each buffer back to the host, in one submission.
+    fn fetch(&self, parts: &[(&wgpu::Buffer, u64)]) -> Result<Vec<Vec<u8>>, GpuError> {
+        let mut offsets = Vec::with_capacity(parts.len());
+        let mut total = 0u64;
+        for (_, bytes) in parts {
+            offsets.push(total);
+            total += bytes.next_multiple_of(256);
         }
-        let t0 = Instant::now();
-        let planned = plan_adaptive(particles, surface, camera, tf, params)?;
-        let (grid, plan, mut stats) = (planned.grid, planned.plan, planned.stats);
-        let (w, h) = (params.width, params.height);
-        let mut image = Image::new(w, h);
-        let Some(depths) = &grid.depths else {
-            stats.stages.push(("total", ms(t0)));
-            return Ok(AdaptiveRender {
-                image,
-                stats,
-                grid,
-                plan,
-            });
-        };
-
-        // Upload: view-space particles, depths, spans with their merged particle lists.
-        let t1 = Instant::now();
-        let parts: Vec<[f32; 4]> = grid
-            .particles
-            .iter()
-            .flat_map(|p| {
-                [
-                    [p.c[0] as f32, p.c[1] as f32, p.c[2] as f32, p.h as f32],
-                    [p.v as f32, p.a as f32, p.m as f32, 0.0],
-                ]
-            })
-            .collect();
-        let zs: Vec<f32> = depths.z.iter().map(|&z| z as f32).collect();
-        let dz = grid.params.depth_samples;
-        let mut spans = Vec::new();
-        let mut refs: Vec<u32> = Vec::new();
-        let mut bundle_spans = Vec::with_capacity(grid.bundle_count() + 1);
-        for b in 0..grid.bundle_count() {
-            bundle_spans.push(spans.len() as u32);
-            for span in plan.bundle_spans(b) {
-                let first = span.first as usize;
-                let cells = &grid.cells[first..first + span.count as usize];
-                let step = 1u32 << span.level;
-                let ref_start = refs.len() as u32;
-                if span.superpixel.is_none() {
-                    refs.extend(grid.merged_refs(cells));
-                }
-                spans.push(GpuSpan {
-                    k0: grid.cells[first].z * dz,
-                    n: span.count * dz / step,
-                    step,
-                    ref_start,
-                    ref_count: refs.len() as u32 - ref_start,
-                    superpixel: span.superpixel.is_some() as u32,
-                    pad: [0; 2],
-                    sp: span.superpixel.unwrap_or([0.0; 4]),
-                });
-            }
-        }
-        bundle_spans.push(spans.len() as u32);
-        let colors: Vec<[f32; 4]> = tf
-            .colors
-            .iter()
-            .map(|(x, c)| [*x as f32, c[0] as f32, c[1] as f32, c[2] as f32])
-            .collect();
-        let opacity: Vec<[f32; 2]> = tf
-            .opacity
-            .iter()
-            .map(|(x, a)| [*x as f32, *a as f32])
-            .collect();
-        let frame = grid.frame;
-        let uniforms = Params {
-            width: w,
-            height: h,
-            bundles_x: grid.bundles_x,
-            bundle: grid.params.bundle,
-            aspect: frame.aspect as f32,
-            tan_half: frame.tan_half as f32,
-            parallel_scale: frame.parallel.unwrap_or(0.0) as f32,
-            min_transmittance: params.min_transmittance as f32,
-            field: match params.field {
-                FieldKind::Csph => 0,
-                FieldKind::Sph => 1,
-                FieldKind::Density => 2,
-            },
-            kernel: match params.kernel {
-                Kernel::CubicSpline => 0,
-                Kernel::Quintic => 1,
-                Kernel::WendlandC2 => 2,
-                Kernel::WendlandC4 => 3,
-                Kernel::Poly6 => 4,
-                Kernel::Gaussian => 5,
-            },
-            gauss_norm: gaussian_norm() as f32,
-            n_colors: colors.len() as u32,
-            n_opacity: opacity.len() as u32,
-            tf_lo: tf.range.0 as f32,
-            tf_hi: tf.range.1 as f32,
-            unit_distance: tf.unit_distance as f32,
-            has_limit: params.depth_limit.is_some() as u32,
-            pad: [0; 3],
-        };
-        let n_px = w as u64 * h as u64;
-        let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
-        let storage = |role: &'static str, bytes: &[u8]| {
-            self.buffer(role, bytes.len() as u64, input, Some(bytes))
-        };
-        let uniform = self.buffer(
-            "params",
-            std::mem::size_of::<Params>() as u64,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            Some(bytemuck::bytes_of(&uniforms)),
+        let staging = self.buffer(
+            "readback",
+            total,
+            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            None,
         );
-        let b_parts = storage("particles", bytemuck::cast_slice(&parts));
-        let b_depths = storage("depths", bytemuck::cast_slice(&zs));
-        let b_spans = storage("spans", bytemuck::cast_slice(&spans));
-        let b_bspans = storage("bundle spans", bytemuck::cast_slice(&bundle_spans));
-        let b_refs = storage("refs", bytemuck::cast_slice(&refs));
-        let b_colors = storage("colors", bytemuck::cast_slice(&colors));
-        let b_opacity = storage("opacity", bytemuck::cast_slice(&opacity));
-        // f32::INFINITY is fine in WGSL storage (the shader only compares against it).
-        let limits: &[f32] = params.depth_limit.as_deref().unwrap_or(&[]);
-        let b_limit = storage("depth limit", bytemuck::cast_slice(limits));
-        let out = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
-        let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-        let b_rgba = self.buffer("rgba", 16 * n_px, out, None);
-        let b_depth = self.buffer("depth", 4 * n_px, out, None);
-        let b_samples = self.buffer("samples", 4 * n_px, out, None);
-        let r_rgba = self.buffer("rgba readback", 16 * n_px, read, None);
-        let r_depth = self.buffer("depth readback", 4 * n_px, read, None);
-        let r_samples = self.buffer("samples readback", 4 * n_px, read, None);
-        let entries: Vec<wgpu::BindGroupEntry> = [
-            &uniform, &b_parts, &b_depths, &b_spans, &b_bspans, &b_refs, &b_colors, &b_opacity,
-            &b_rgba, &b_depth, &b_samples, &b_limit,
-        ]
-        .iter()
-        .enumerate()
-        .map(|(k, b)| wgpu::BindGroupEntry {
-            binding: k as u32,
-            resource: b.as_entire_binding(),
-        })
-        .collect();
-        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("raycast"),
-            layout: &self.layout,
-            entries: &entries,
-        });
-        stats.stages.push(("upload", ms(t1)));
-
-        let t2 = Instant::now();
         let mut enc = self
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-        {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("raycast"),
-                timestamp_writes: self.timestamps.as_ref().map(|q| {
-                    wgpu::ComputePassTimestampWrites {
-                        query_set: q,
-                        beginning_of_pass_write_index: Some(0),
-                        end_of_pass_write_index: Some(1),
-                    }
-                }),
-            });
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(grid.bundles_x, grid.bundles_y, 1);
+        for ((b, bytes), off) in parts.iter().zip(&offsets) {
+            if *bytes > 0 {
+                enc.copy_buffer_to_buffer(b, 0, &staging, *off, bytes.next_multiple_of(4));
+            }
         }
-        let ts = self.timestamps.as_ref().map(|q| {
-            let resolve = self.buffer(
-                "timestamps",
-                16,
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                None,
-            );
-            let r = self.buffer("timestamps readback", 16, read, None);
-            enc.resolve_query_set(q, 0..2, &resolve, 0);
-            enc.copy_buffer_to_buffer(&resolve, 0, &r, 0, 16);
-            r
-        });
-        enc.copy_buffer_to_buffer(&b_rgba, 0, &r_rgba, 0, 16 * n_px);
-        enc.copy_buffer_to_buffer(&b_depth, 0, &r_depth, 0, 4 * n_px);
-        enc.copy_buffer_to_buffer(&b_samples, 0, &r_samples, 0, 4 * n_px);
         self.queue.submit([enc.finish()]);
-        let rgba: Vec<[f32; 4]> = read_back(&self.device, &r_rgba, 16 * n_px)?;
-        let depth: Vec<f32> = read_back(&self.device, &r_depth, 4 * n_px)?;
-        let samples: Vec<u32> = read_back(&self.device, &r_samples, 4 * n_px)?;
-        stats.stages.push(("raycast", ms(t2)));
-        if let Some(r) = ts {
-            let t: Vec<u64> = read_back(&self.device, &r, 16)?;
-            let period = self.queue.get_timestamp_period() as f64;
-            let ns = t[1].saturating_sub(t[0]) as f64 * period;
-            stats.stages.push(("gpu_raycast", ns * 1e-6));
-        }
-        stats.gpu_memory_bytes = self.memory_bytes();
-
-        // Bundles with no cells were not written by the shader: transparent, depth +inf.
-        for b in 0..grid.bundle_count() {
-            if grid.bundle_cells(b).is_empty() {
-                continue;
-            }
-            let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-            for j in y0..y1 {
-                for i in x0..x1 {
-                    let k = image.index(i, j);
-                    image.rgba[k] = rgba[k];
-                    stats.samples += samples[k] as u64;
-                    image.depth[k] = if depth[k] > 1e29 {
-                        f32::INFINITY
-                    } else {
-                        depth[k]
-                    };
-                }
-            }
-        }
-        image.aovs = plan_aovs(&grid, &plan, w, h);
-        stats.stages.push(("total", ms(t0)));
-        Ok(AdaptiveRender {
-            image,
-            stats,
-            grid,
-            plan,
-        })
+        let slice = staging.slice(..total.max(8));
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Device(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Device(e.to_string()))?
+            .map_err(|e| GpuError::Device(e.to_string()))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Device(e.to_string()))?;
+        let out = parts
+            .iter()
+            .zip(&offsets)
+            .map(|((_, bytes), off)| view[*off as usize..(*off + *bytes) as usize].to_vec())
+            .collect();
+        drop(view);
+        staging.unmap();
+        Ok(out)
     }
 }
 
-/// The first `bytes` of a mappable buffer (buffers are reused, so they may be larger).
-fn read_back<T: Pod>(
-    device: &wgpu::Device,
-    buf: &wgpu::Buffer,
-    bytes: u64,
-) -> Result<Vec<T>, GpuError> {
-    let slice = buf.slice(..bytes);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Device(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Device(e.to_string()))?
-        .map_err(|e| GpuError::Device(e.to_string()))?;
-    let view = slice
-        .get_mapped_range()
-        .map_err(|e| GpuError::Device(e.to_string()))?;
-    let out = bytemuck::cast_slice(&view).to_vec();
-    drop(view);
-    buf.unmap();
-    Ok(out)
+/// Reinterprets fetched bytes.
+fn cast<T: Pod>(bytes: &[u8]) -> Vec<T> {
+    bytemuck::pod_collect_to_vec(bytes)
 }
 
-/// The Gaussian kernel's normalisation constant c (`fluidcast_sph::Kernel::eval`): W(0, H) =
-/// 1 / (c σ³) with σ = H/3.
-fn gaussian_norm() -> f64 {
-    let h = 3.0; // σ = 1
-    1.0 / Kernel::Gaussian.eval(0.0, h)
+/// Stage timings of a frame, with the GPU's own where the adapter has timestamps.
+fn push_stage(stats: &mut RenderStats, name: &'static str, ms: f64) {
+    match stats.stages.iter_mut().find(|s| s.0 == name) {
+        Some(s) => s.1 += ms,
+        None => stats.stages.push((name, ms)),
+    }
 }

@@ -1,140 +1,52 @@
-// Bundle-coherent ray casting (Hochstetter et al. 2016, Alg. 2) of a sampling plan built on
-// the CPU: one workgroup per ray bundle, one invocation per ray. For each span of the
+// Bundle-coherent ray casting (Hochstetter et al. 2016, Alg. 2) of a sampling plan (built by
+// plan.wgsl, or on the CPU and uploaded): one workgroup per ray bundle, one invocation per ray. For each span of the
 // bundle's plan (front to back) the span's particles are loaded into workgroup memory in
 // chunks and every ray scatters them into its samples; then the samples are composited.
 // Mirrors fluidcast-render's CPU caster (raycast.rs / adaptive.rs) in single precision.
 
-struct Params {
-    width: u32,
-    height: u32,
-    bundles_x: u32,
-    bundle: u32,
-    aspect: f32,
-    tan_half: f32,
-    parallel_scale: f32, // > 0: parallel projection with this scale
-    min_transmittance: f32,
-    field: u32,          // 0 csph, 1 sph, 2 density
-    kernel: u32,         // 0 cubic, 1 quintic, 2 wendland-c2, 3 wendland-c4, 4 poly6, 5 gaussian
-    gauss_norm: f32,     // the Gaussian kernel's normalisation constant c (see kernel.rs)
-    n_colors: u32,
-    n_opacity: u32,
-    tf_lo: f32,
-    tf_hi: f32,
-    unit_distance: f32,
-    has_limit: u32,      // 1: depth_limit holds a view depth per pixel (opaque geometry)
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-};
-
-struct Span {
-    k0: u32,        // first depth index
-    n: u32,         // samples (depths k0 + m*step, m = 0..n; n+1 depths bound n steps)
-    step: u32,
-    ref_start: u32,
-    ref_count: u32,
-    superpixel: u32, // 1: composite `sp` instead of sampling
-    pad0: u32,
-    pad1: u32,
-    sp: vec4<f32>,
-};
-
-@group(0) @binding(0) var<uniform> P: Params;
-@group(0) @binding(1) var<storage, read> particles: array<vec4<f32>>; // (c.xyz, h), (v, a, m, 0)
-@group(0) @binding(2) var<storage, read> depths: array<f32>;
-@group(0) @binding(3) var<storage, read> spans: array<Span>;
-@group(0) @binding(4) var<storage, read> bundle_spans: array<u32>; // span range per bundle
-@group(0) @binding(5) var<storage, read> refs: array<u32>;
-@group(0) @binding(6) var<storage, read> colors: array<vec4<f32>>;  // (x, r, g, b)
-@group(0) @binding(7) var<storage, read> opacity: array<vec2<f32>>; // (x, alpha)
-@group(0) @binding(8) var<storage, read_write> out_rgba: array<vec4<f32>>;
-@group(0) @binding(9) var<storage, read_write> out_depth: array<f32>;
-@group(0) @binding(10) var<storage, read_write> out_samples: array<u32>;
-@group(0) @binding(11) var<storage, read> depth_limit: array<f32>;
+@group(0) @binding(3) var<storage, read> particles: array<vec4<f32>>; // view space: (c.xyz, h), (v, a, m, 0)
+@group(0) @binding(4) var<storage, read> depths: array<f32>;
+@group(0) @binding(5) var<storage, read> spans: array<Span>;        // bundle b's at bundle_cells[b]..
+@group(0) @binding(6) var<storage, read> span_count: array<u32>;
+@group(0) @binding(7) var<storage, read> bundle_cells: array<u32>;
+@group(0) @binding(8) var<storage, read> cells: array<Cell>;
+@group(0) @binding(9) var<storage, read> refs: array<u32>;
+@group(0) @binding(10) var<storage, read_write> out_rgba: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> out_depth: array<f32>;
+@group(0) @binding(12) var<storage, read_write> out_samples: array<u32>;
+@group(0) @binding(13) var<storage, read> depth_limit: array<f32>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
-const PI: f32 = 3.14159265358979;
 
 var<workgroup> cache_a: array<vec4<f32>, 64>;
 var<workgroup> cache_b: array<vec4<f32>, 64>;
 var<workgroup> all_done: atomic<u32>;
 var<workgroup> done_flag: u32;
 
-fn kernel_w(r: f32, h: f32) -> f32 {
-    let q = r / h;
-    if (q >= 1.0) {
-        return 0.0;
+/// The t-th particle reference of a span: the merged cells' references, each particle once
+/// (a cell's references with the merge bit set are repeated by the next cell).
+fn span_ref(first: u32, count: u32, t: u32) -> u32 {
+    var rest = t;
+    for (var i = 0u; i < count; i = i + 1u) {
+        let c = cells[first + i];
+        let len = select(c.unique_end, c.end, i + 1u == count) - c.start;
+        if (rest < len) {
+            return refs[c.start + rest];
+        }
+        rest = rest - len;
     }
-    let h3 = h * h * h;
-    switch P.kernel {
-        case 0u: {
-            let k = 8.0 / (PI * h3);
-            if (q <= 0.5) {
-                return k * (6.0 * q * q * q - 6.0 * q * q + 1.0);
-            }
-            let t = 1.0 - q;
-            return k * 2.0 * t * t * t;
-        }
-        case 1u: {
-            let s = 3.0 * q;
-            let hh = h / 3.0;
-            let a = max(3.0 - s, 0.0);
-            let b = max(2.0 - s, 0.0);
-            let c = max(1.0 - s, 0.0);
-            let p = a * a * a * a * a - 6.0 * b * b * b * b * b + 15.0 * c * c * c * c * c;
-            return p / (120.0 * PI * hh * hh * hh);
-        }
-        case 2u: {
-            let t = 1.0 - q;
-            return 21.0 / (2.0 * PI * h3) * t * t * t * t * (1.0 + 4.0 * q);
-        }
-        case 3u: {
-            let t = 1.0 - q;
-            let t2 = t * t;
-            return 495.0 / (32.0 * PI * h3) * t2 * t2 * t2 * (1.0 + 6.0 * q + 35.0 / 3.0 * q * q);
-        }
-        case 4u: {
-            let d = 1.0 - q * q;
-            return 315.0 / (64.0 * PI * h3) * d * d * d;
-        }
-        default: {
-            let sigma = h / 3.0;
-            return exp(-(r * r) / (2.0 * sigma * sigma)) / (P.gauss_norm * sigma * sigma * sigma);
-        }
-    }
+    return 0u;
 }
 
-fn tf_eval(q: f32) -> vec4<f32> {
-    // ParaView-style: clamp to the range, interpolate linearly between control points.
-    let t = clamp((q - P.tf_lo) / (P.tf_hi - P.tf_lo), 0.0, 1.0);
-    var rgb = colors[0].yzw;
-    if (t > colors[0].x) {
-        rgb = colors[P.n_colors - 1u].yzw;
-        for (var i = 1u; i < P.n_colors; i = i + 1u) {
-            if (t <= colors[i].x) {
-                let d = colors[i].x - colors[i - 1u].x;
-                var f = 1.0;
-                if (d > 0.0) { f = (t - colors[i - 1u].x) / d; }
-                rgb = mix(colors[i - 1u].yzw, colors[i].yzw, f);
-                break;
-            }
-        }
+/// Number of particle references of a span (GridPlan::merged_refs).
+fn span_refs(first: u32, count: u32) -> u32 {
+    var n = 0u;
+    for (var i = 0u; i < count; i = i + 1u) {
+        let c = cells[first + i];
+        n = n + select(c.unique_end, c.end, i + 1u == count) - c.start;
     }
-    var a = opacity[0].y;
-    if (t > opacity[0].x) {
-        a = opacity[P.n_opacity - 1u].y;
-        for (var i = 1u; i < P.n_opacity; i = i + 1u) {
-            if (t <= opacity[i].x) {
-                let d = opacity[i].x - opacity[i - 1u].x;
-                var f = 1.0;
-                if (d > 0.0) { f = (t - opacity[i - 1u].x) / d; }
-                a = mix(opacity[i - 1u].y, opacity[i].y, f);
-                break;
-            }
-        }
-    }
-    return vec4<f32>(rgb, a);
+    return n;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -172,8 +84,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     var shepard: array<f32, MAXS>;
     var density: array<f32, MAXS>;
 
-    let s0 = bundle_spans[b];
-    let s1 = bundle_spans[b + 1u];
+    let s0 = bundle_cells[b];
+    let s1 = s0 + span_count[b];
     for (var s = s0; s < s1; s = s + 1u) {
         if (li == 0u) {
             atomicStore(&all_done, 0u);
@@ -226,11 +138,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             shepard[m] = 0.0;
             density[m] = 0.0;
         }
-        for (var c0 = 0u; c0 < span.ref_count; c0 = c0 + CHUNK) {
-            let cn = min(CHUNK, span.ref_count - c0);
+        let ref_count = span_refs(span.first, span.count);
+        for (var c0 = 0u; c0 < ref_count; c0 = c0 + CHUNK) {
+            let cn = min(CHUNK, ref_count - c0);
             workgroupBarrier();
             if (li < cn) {
-                let pid = refs[span.ref_start + c0 + li];
+                let pid = span_ref(span.first, span.count, c0 + li);
                 cache_a[li] = particles[2u * pid];
                 cache_b[li] = particles[2u * pid + 1u];
             }

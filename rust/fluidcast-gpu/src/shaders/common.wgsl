@@ -1,0 +1,191 @@
+// Shared by the grid, plan and ray casting shaders (prepended by the Rust side): the frame's
+// uniform parameters, the transfer function, the SPH kernels and the interval arithmetic of the
+// error analysis. Mirrors the f64 CPU code in single precision.
+
+struct Frame {
+    eye: vec4<f32>,      // camera position (world)
+    right: vec4<f32>,    // view-space axes in world coordinates
+    up: vec4<f32>,
+    forward: vec4<f32>,
+    width: u32,
+    height: u32,
+    bundles_x: u32,
+    bundles_y: u32,
+    bundle: u32,         // D_xy (pixels)
+    dz: u32,             // D_z (depth samples per cell)
+    cells_z: u32,        // cells along depth, N / D_z
+    n_depths: u32,       // N
+    aspect: f32,
+    tan_half: f32,
+    parallel_scale: f32, // > 0: parallel projection with this scale
+    min_transmittance: f32,
+    field: u32,          // 0 csph, 1 sph, 2 density
+    kernel: u32,         // 0 cubic, 1 quintic, 2 wendland-c2, 3 wendland-c4, 4 poly6, 5 gaussian
+    gauss_norm: f32,     // the Gaussian kernel's normalisation constant c (see kernel.rs)
+    n_colors: u32,
+    n_opacity: u32,
+    tf_lo: f32,
+    tf_hi: f32,
+    unit_distance: f32,
+    has_limit: u32,      // 1: depth_limit holds a view depth per pixel (opaque geometry)
+    n_particles: u32,
+    near: f32,
+    far: f32,
+    tolerance: f32,      // E_I, or < 0 for no adaptivity
+    relax: f32,          // E_relax
+    budget: f32,         // E_I - min_transmittance
+    superpixels: u32,
+    surface_rule: u32,   // 1: PlanParams::uses_surface_cells
+    max_level: u32,      // log2 D_z
+    n_pairs: u32,
+    n_cells: u32,
+};
+
+/// A non-empty grid cell (fluidcast_grid::Cell) and its bundle.
+struct Cell {
+    z: u32,
+    start: u32,
+    unique_end: u32, // refs start..unique_end are not referenced by the cell at z + 1
+    end: u32,
+    bundle: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+};
+
+/// A run of `count` cells of one bundle sampled every `step` depth samples, or one cell drawn
+/// as a super-pixel (fluidcast_plan::Span, with the depth samples it covers).
+struct Span {
+    first: u32,      // first cell
+    count: u32,
+    level: u32,
+    superpixel: u32, // 1: composite `sp` (I rgb, T) instead of sampling
+    k0: u32,         // first depth index
+    n: u32,          // samples: depths k0 + m * step, m = 0..n (n + 1 depths bound n steps)
+    step: u32,
+    pad: u32,
+    sp: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> P: Frame;
+@group(0) @binding(1) var<storage, read> colors: array<vec4<f32>>;  // (x, r, g, b)
+@group(0) @binding(2) var<storage, read> opacity: array<vec2<f32>>; // (x, alpha)
+
+const PI: f32 = 3.14159265358979;
+const LEVELS: u32 = 7u;
+// Stands for an infinite extinction (alpha = 1): exp(-K_INF * ds) is 0 for any step.
+const K_INF: f32 = 1.0e30;
+
+/// Index of this workgroup in a dispatch that may be folded into two dimensions.
+fn group_index(wg: vec3<u32>, nw: vec3<u32>) -> u32 {
+    return wg.y * nw.x + wg.x;
+}
+
+fn kernel_w(r: f32, h: f32) -> f32 {
+    let q = r / h;
+    if (q >= 1.0) {
+        return 0.0;
+    }
+    let h3 = h * h * h;
+    switch P.kernel {
+        case 0u: {
+            let k = 8.0 / (PI * h3);
+            if (q <= 0.5) {
+                return k * (6.0 * q * q * q - 6.0 * q * q + 1.0);
+            }
+            let t = 1.0 - q;
+            return k * 2.0 * t * t * t;
+        }
+        case 1u: {
+            let s = 3.0 * q;
+            let hh = h / 3.0;
+            let a = max(3.0 - s, 0.0);
+            let b = max(2.0 - s, 0.0);
+            let c = max(1.0 - s, 0.0);
+            let p = a * a * a * a * a - 6.0 * b * b * b * b * b + 15.0 * c * c * c * c * c;
+            return p / (120.0 * PI * hh * hh * hh);
+        }
+        case 2u: {
+            let t = 1.0 - q;
+            return 21.0 / (2.0 * PI * h3) * t * t * t * t * (1.0 + 4.0 * q);
+        }
+        case 3u: {
+            let t = 1.0 - q;
+            let t2 = t * t;
+            return 495.0 / (32.0 * PI * h3) * t2 * t2 * t2 * (1.0 + 6.0 * q + 35.0 / 3.0 * q * q);
+        }
+        case 4u: {
+            let d = 1.0 - q * q;
+            return 315.0 / (64.0 * PI * h3) * d * d * d;
+        }
+        default: {
+            let sigma = h / 3.0;
+            return exp(-(r * r) / (2.0 * sigma * sigma)) / (P.gauss_norm * sigma * sigma * sigma);
+        }
+    }
+}
+
+/// Map position t in [0, 1] of data value q (TransferFunction::normalised); NaN maps to -1.
+fn tf_t(q: f32) -> f32 {
+    if (q != q) {
+        return -1.0;
+    }
+    return clamp((q - P.tf_lo) / (P.tf_hi - P.tf_lo), 0.0, 1.0);
+}
+
+/// Colour and opacity per unit distance at map position t (TransferFunction::eval_normalised).
+fn tf_at(t: f32) -> vec4<f32> {
+    var rgb = colors[0].yzw;
+    if (t > colors[0].x) {
+        rgb = colors[P.n_colors - 1u].yzw;
+        for (var i = 1u; i < P.n_colors; i = i + 1u) {
+            if (t <= colors[i].x) {
+                let d = colors[i].x - colors[i - 1u].x;
+                var f = 1.0;
+                if (d > 0.0) { f = (t - colors[i - 1u].x) / d; }
+                rgb = mix(colors[i - 1u].yzw, colors[i].yzw, f);
+                break;
+            }
+        }
+    }
+    var a = opacity[0].y;
+    if (t > opacity[0].x) {
+        a = opacity[P.n_opacity - 1u].y;
+        for (var i = 1u; i < P.n_opacity; i = i + 1u) {
+            if (t <= opacity[i].x) {
+                let d = opacity[i].x - opacity[i - 1u].x;
+                var f = 1.0;
+                if (d > 0.0) { f = (t - opacity[i - 1u].x) / d; }
+                a = mix(opacity[i - 1u].y, opacity[i].y, f);
+                break;
+            }
+        }
+    }
+    return vec4<f32>(rgb, a);
+}
+
+fn tf_eval(q: f32) -> vec4<f32> {
+    return tf_at(tf_t(q));
+}
+
+/// Bounds on a composited segment (fluidcast_plan::Bound): xyz premultiplied irradiance,
+/// w transparency.
+struct Bound {
+    lo: vec4<f32>,
+    hi: vec4<f32>,
+};
+
+fn bound_empty() -> Bound {
+    return Bound(vec4<f32>(0.0, 0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
+}
+
+/// f in front of b (Bound::over).
+fn over(f: Bound, b: Bound) -> Bound {
+    return Bound(vec4<f32>(f.lo.xyz + f.lo.w * b.lo.xyz, f.lo.w * b.lo.w),
+                 vec4<f32>(f.hi.xyz + f.hi.w * b.hi.xyz, f.hi.w * b.hi.w));
+}
+
+fn width(b: Bound) -> f32 {
+    let d = b.hi - b.lo;
+    return max(max(d.x, d.y), max(d.z, max(d.w, 0.0)));
+}

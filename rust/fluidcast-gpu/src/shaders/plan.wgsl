@@ -1,0 +1,479 @@
+// The sampling plan on the GPU (Hochstetter et al. 2016, Sec. 4–6.2), mirroring
+// fluidcast_plan::SamplingPlan::build in single precision:
+// * `analyse`: one workgroup per cell, one invocation per depth sample: quantity bounds from the
+//   cell's particles, coverage by 4 × 4 sub-bundles, colour/opacity bounds from exact transfer
+//   function extremes, then one invocation per sampling level composites the cell's bound.
+// * `greedy`: one invocation per bundle: relaxed bounds, the back-to-front greedy choice of
+//   level or super-pixel under E_I, cell merging, the spans the ray caster reads, statistics.
+
+@group(0) @binding(3) var<storage, read> vparts: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> depths: array<f32>;
+@group(0) @binding(5) var<storage, read> cells: array<Cell>;
+@group(0) @binding(6) var<storage, read> refs: array<u32>;
+@group(0) @binding(7) var<storage, read> surface: array<u32>;
+@group(0) @binding(8) var<storage, read_write> bounds: array<vec4<f32>>; // (lo, hi) per cell and level
+@group(0) @binding(9) var<storage, read_write> info: array<u32>;         // 1: coverage gap, 2: surface particle
+@group(0) @binding(10) var<storage, read> bundle_cells: array<u32>;
+@group(0) @binding(11) var<storage, read_write> front: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> levels: array<u32>;      // chosen level, 255 super-pixel
+@group(0) @binding(13) var<storage, read_write> spans: array<Span>;      // bundle b's at bundle_cells[b]..
+@group(0) @binding(14) var<storage, read_write> span_count: array<u32>;
+@group(0) @binding(15) var<storage, read_write> summaries: array<vec4<f32>>;
+// [cells per level 0..7, super-pixel cells, surface cells, merged cells, refs sampled]
+@group(0) @binding(16) var<storage, read_write> plan_stats: array<atomic<u32>>;
+
+/// A bundle's rays: extremes of the direction's (perspective) or origin's (parallel) x and y
+/// over its pixel centres, and of |d| (fluidcast_grid::Bundle).
+struct Rays {
+    x: vec2<f32>,
+    y: vec2<f32>,
+    dlen: vec2<f32>,
+};
+
+fn ndc(i: u32, j: u32) -> vec2<f32> {
+    return vec2<f32>(2.0 * (f32(i) + 0.5) / f32(P.width) - 1.0,
+                     1.0 - 2.0 * (f32(j) + 0.5) / f32(P.height));
+}
+
+fn bundle_pixels(b: u32) -> vec4<u32> {
+    let bx = b % P.bundles_x;
+    let by = b / P.bundles_x;
+    let d = P.bundle;
+    return vec4<u32>(bx * d, min((bx + 1u) * d, P.width), by * d, min((by + 1u) * d, P.height));
+}
+
+fn near_abs(r: vec2<f32>) -> f32 {
+    if (r.x <= 0.0 && r.y >= 0.0) {
+        return 0.0;
+    }
+    return min(abs(r.x), abs(r.y));
+}
+
+fn rays_of(px: vec4<u32>) -> Rays {
+    let a = ndc(px.x, px.z);
+    let b = ndc(px.y - 1u, px.w - 1u);
+    var s = vec2<f32>(P.tan_half * P.aspect, P.tan_half);
+    if (P.parallel_scale > 0.0) {
+        s = vec2<f32>(P.parallel_scale * P.aspect, P.parallel_scale);
+    }
+    let x = vec2<f32>(a.x * s.x, b.x * s.x);
+    let y = vec2<f32>(b.y * s.y, a.y * s.y);
+    var dl = vec2<f32>(1.0, 1.0);
+    if (P.parallel_scale <= 0.0) {
+        let nx = near_abs(x);
+        let ny = near_abs(y);
+        let fx = max(abs(x.x), abs(x.y));
+        let fy = max(abs(y.x), abs(y.y));
+        dl = vec2<f32>(sqrt(1.0 + nx * nx + ny * ny), sqrt(1.0 + fx * fx + fy * fy));
+    }
+    return Rays(x, y, dl);
+}
+
+/// Every ray of the bundle strictly inside the particle's support at depth z (Bundle::covered_by;
+/// the margin is wider than the CPU's for single precision, which only makes it more cautious).
+fn covered(r: Rays, c: vec3<f32>, h: f32, z: f32) -> bool {
+    var rx = r.x;
+    var ry = r.y;
+    if (P.parallel_scale <= 0.0) {
+        rx = rx * z;
+        ry = ry * z;
+    }
+    let dz = z - c.z;
+    let lim = (h * h - dz * dz) * (1.0 - 1.0e-5);
+    if (lim <= 0.0) {
+        return false;
+    }
+    let fx = max(abs(rx.x - c.x), abs(rx.y - c.x));
+    let fy = max(abs(ry.x - c.y), abs(ry.y - c.y));
+    return fx * fx + fy * fy < lim;
+}
+
+/// Per-sample colour and extinction bounds (the CPU's ValueBound).
+struct ValueBound {
+    empty: bool,
+    may_be_empty: bool,
+    rgb_lo: vec3<f32>,
+    rgb_hi: vec3<f32>,
+    k: vec2<f32>, // extinction per world unit, (lo, hi)
+};
+
+fn vb_union(a: ValueBound, b: ValueBound) -> ValueBound {
+    if (a.empty) {
+        var r = b;
+        r.may_be_empty = true;
+        return r;
+    }
+    if (b.empty) {
+        var r = a;
+        r.may_be_empty = true;
+        return r;
+    }
+    return ValueBound(false, a.may_be_empty || b.may_be_empty, min(a.rgb_lo, b.rgb_lo),
+                      max(a.rgb_hi, b.rgb_hi), vec2<f32>(min(a.k.x, b.k.x), max(a.k.y, b.k.y)));
+}
+
+/// Bound of one step of world length in [ds0, ds1] (ValueBound::step).
+fn vb_step(v: ValueBound, ds0: f32, ds1: f32) -> Bound {
+    if (v.empty) {
+        return bound_empty();
+    }
+    let t_lo = exp(-v.k.y * ds1);
+    let t_hi = exp(-v.k.x * ds0);
+    let a_lo = 1.0 - t_hi;
+    let a_hi = 1.0 - t_lo;
+    var lo = vec4<f32>(a_lo * v.rgb_lo, t_lo);
+    var hi = vec4<f32>(a_hi * v.rgb_hi, t_hi);
+    if (v.may_be_empty) {
+        lo = vec4<f32>(0.0, 0.0, 0.0, t_lo);
+        hi.w = 1.0;
+    }
+    return Bound(lo, hi);
+}
+
+fn extinction(alpha: f32) -> f32 {
+    if (alpha >= 1.0) {
+        return K_INF;
+    }
+    return -log(1.0 - alpha) / P.unit_distance;
+}
+
+/// Exact colour/opacity extremes over the data values [q0, q1] (TfBounds::range): the ends and
+/// the control points strictly inside.
+fn tf_range(q0: f32, q1: f32) -> ValueBound {
+    var t0 = tf_t(q0);
+    var t1 = tf_t(q1);
+    if (t0 < 0.0 || t1 < 0.0) {
+        t0 = 0.0;
+        t1 = 1.0;
+    } else {
+        let a = min(t0, t1);
+        t1 = max(t0, t1);
+        t0 = a;
+    }
+    let e0 = tf_at(t0);
+    let e1 = tf_at(t1);
+    var lo = min(e0, e1);
+    var hi = max(e0, e1);
+    for (var i = 0u; i < P.n_colors; i = i + 1u) {
+        let c = colors[i];
+        if (c.x >= t1) {
+            break;
+        }
+        if (c.x > t0) {
+            lo = vec4<f32>(min(lo.xyz, c.yzw), lo.w);
+            hi = vec4<f32>(max(hi.xyz, c.yzw), hi.w);
+        }
+    }
+    for (var i = 0u; i < P.n_opacity; i = i + 1u) {
+        let o = opacity[i];
+        if (o.x >= t1) {
+            break;
+        }
+        if (o.x > t0) {
+            lo.w = min(lo.w, o.y);
+            hi.w = max(hi.w, o.y);
+        }
+    }
+    return ValueBound(false, false, lo.xyz, hi.xyz, vec2<f32>(extinction(lo.w), extinction(hi.w)));
+}
+
+var<workgroup> parts: array<Rays, 16>;
+var<workgroup> vbs: array<ValueBound, 64>;
+var<workgroup> cell_flags: atomic<u32>;
+
+fn cut(a: u32, n: u32, g: u32, i: u32) -> u32 {
+    return a + i * n / g;
+}
+
+@compute @workgroup_size(64)
+fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
+           @builtin(local_invocation_index) li: u32) {
+    let c = group_index(wg, nw);
+    if (c >= P.n_cells) {
+        return;
+    }
+    let cell = cells[c];
+    let px = bundle_pixels(cell.bundle);
+    let rays = rays_of(px);
+    let gx = min(4u, px.y - px.x);
+    let gy = min(4u, px.w - px.z);
+    let np = gx * gy;
+    if (li < np) {
+        let u = li % gx;
+        let v = li / gx;
+        parts[li] = rays_of(vec4<u32>(cut(px.x, px.y - px.x, gx, u), cut(px.x, px.y - px.x, gx, u + 1u),
+                                      cut(px.z, px.w - px.z, gy, v), cut(px.z, px.w - px.z, gy, v + 1u)));
+    }
+    if (li == 0u) {
+        atomicStore(&cell_flags, 0u);
+    }
+    workgroupBarrier();
+    let full = (1u << np) - 1u;
+    var part_r2 = 3.0e38;
+    for (var s = 0u; s < np; s = s + 1u) {
+        let p = parts[s];
+        part_r2 = min(part_r2, 0.25 * ((p.x.y - p.x.x) * (p.x.y - p.x.x) + (p.y.y - p.y.x) * (p.y.y - p.y.x)));
+    }
+    let k0 = cell.z * P.dz;
+    if (li < P.dz) {
+        let z = depths[k0 + li];
+        var qlo = 3.0e38;
+        var qhi = -3.0e38;
+        var slo = 0.0;
+        var shi = 0.0;
+        var any = false;
+        var cover = 0u;
+        for (var r = cell.start; r < cell.end; r = r + 1u) {
+            let j = refs[r];
+            let a = vparts[2u * j];
+            if (z < a.z - a.w || z > a.z + a.w) {
+                continue;
+            }
+            let pb = vparts[2u * j + 1u];
+            let wmax = kernel_w(0.0, a.w);
+            any = true;
+            qlo = min(qlo, pb.y);
+            qhi = max(qhi, pb.y);
+            if (P.field == 1u) {
+                let s = pb.y * pb.x * wmax;
+                slo = slo + min(s, 0.0);
+                shi = shi + max(s, 0.0);
+            } else if (P.field == 2u) {
+                shi = shi + pb.z * wmax;
+            }
+            if (cover != full) {
+                // The disc must at least reach over a sub-bundle's half diagonal.
+                let dzk = z - a.z;
+                let lim = a.w * a.w - dzk * dzk;
+                var scale = z * z;
+                if (P.parallel_scale > 0.0) {
+                    scale = 1.0;
+                }
+                if (lim <= part_r2 * scale) {
+                    continue;
+                }
+                if (covered(rays, a.xyz, a.w, z)) {
+                    cover = full;
+                } else {
+                    for (var s = 0u; s < np; s = s + 1u) {
+                        if ((cover & (1u << s)) == 0u && covered(parts[s], a.xyz, a.w, z)) {
+                            cover = cover | (1u << s);
+                        }
+                    }
+                }
+            }
+        }
+        var vb = ValueBound(true, true, vec3<f32>(0.0), vec3<f32>(0.0), vec2<f32>(0.0));
+        if (any) {
+            if (P.field == 0u) {
+                vb = tf_range(qlo, qhi);
+            } else {
+                vb = tf_range(slo, shi);
+            }
+            vb.may_be_empty = cover != full;
+            if (cover != full) {
+                atomicOr(&cell_flags, 1u);
+            }
+        }
+        vbs[li] = vb;
+    }
+    if (P.surface_rule == 1u) {
+        for (var r = cell.start + li; r < cell.end; r = r + 64u) {
+            if (surface[refs[r]] != 0u) {
+                atomicOr(&cell_flags, 2u);
+                break;
+            }
+        }
+    }
+    workgroupBarrier();
+    if (li <= P.max_level) {
+        // Level l: sample k is drawn with the value of sample floor(k / 2^l) 2^l over its own
+        // step, so step k's bound is the union of both samples' bounds.
+        let step = 1u << li;
+        var acc = bound_empty();
+        for (var k = 0u; k < P.dz; k = k + 1u) {
+            var u = vbs[k];
+            if (k % step != 0u) {
+                u = vb_union(vbs[k / step * step], u);
+            }
+            let ds = depths[k0 + k + 1u] - depths[k0 + k];
+            acc = over(acc, vb_step(u, ds * rays.dlen.x, ds * rays.dlen.y));
+        }
+        bounds[(c * LEVELS + li) * 2u] = acc.lo;
+        bounds[(c * LEVELS + li) * 2u + 1u] = acc.hi;
+    }
+    if (li == 0u) {
+        info[c] = atomicLoad(&cell_flags);
+    }
+}
+
+fn bound_at(c: u32, l: u32) -> Bound {
+    return Bound(bounds[(c * LEVELS + l) * 2u], bounds[(c * LEVELS + l) * 2u + 1u]);
+}
+
+/// Sec. 5.1: lower bounds move up by E_relax × the level-0 width.
+fn relaxed(c: u32, l: u32) -> Bound {
+    let bl = bound_at(c, l);
+    let b0 = bound_at(c, 0u);
+    let lo0 = b0.hi - (1.0 - P.relax) * (b0.hi - b0.lo);
+    return Bound(min(max(lo0 + (bl.lo - b0.lo), vec4<f32>(0.0)), bl.hi), bl.hi);
+}
+
+fn span_of(c: u32, level: u32) -> Span {
+    let sp = level == 255u;
+    return Span(c, 1u, select(level, 0u, sp), select(0u, 1u, sp), 0u, 0u, 0u, 0u, vec4<f32>(0.0));
+}
+
+@compute @workgroup_size(64)
+fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
+          @builtin(local_invocation_index) li: u32) {
+    let b = group_index(wg, nw) * 64u + li;
+    if (b >= P.bundles_x * P.bundles_y) {
+        return;
+    }
+    let c0 = bundle_cells[b];
+    let c1 = bundle_cells[b + 1u];
+    let n = c1 - c0;
+    summaries[2u * b] = vec4<f32>(0.0);
+    summaries[2u * b + 1u] = vec4<f32>(0.0);
+    span_count[b] = 0u;
+    if (n == 0u) {
+        return;
+    }
+    var level_cells: array<u32, 7>;
+    for (var l = 0u; l < LEVELS; l = l + 1u) {
+        level_cells[l] = 0u;
+    }
+    var n_sp = 0u;
+    var n_surface = 0u;
+    var back = bound_empty();
+    if (P.tolerance < 0.0) {
+        // No adaptivity: every cell at full rate.
+        for (var c = c0; c < c1; c = c + 1u) {
+            levels[c] = 0u;
+        }
+        level_cells[0] = n;
+    } else {
+        // Front composites of the relaxed full-rate bounds (cells c0..c).
+        var f = bound_empty();
+        for (var c = c0; c < c1; c = c + 1u) {
+            front[2u * c] = f.lo;
+            front[2u * c + 1u] = f.hi;
+            f = over(f, relaxed(c, 0u));
+        }
+        // Greedy, back to front (Sec. 4.4, 5.3): among the options whose composited bound stays
+        // under the budget the widest, on ties the cheaper (higher level, super-pixel last).
+        var c = c1;
+        while (c > c0) {
+            c = c - 1u;
+            let is_surface = P.surface_rule == 1u && (info[c] & 3u) == 3u;
+            var lmax = 0u;
+            if (is_surface) {
+                n_surface = n_surface + 1u;
+            } else {
+                while (lmax < P.max_level && width(bound_at(c, lmax + 1u)) < P.tolerance) {
+                    lmax = lmax + 1u;
+                }
+            }
+            let fr = Bound(front[2u * c], front[2u * c + 1u]);
+            var best = relaxed(c, 0u);
+            var best_key = 0u;
+            var best_w = -1.0;
+            for (var l = 0u; l <= lmax; l = l + 1u) {
+                let cb = relaxed(c, l);
+                let w = width(over(fr, over(cb, back)));
+                if (w < P.budget && (w > best_w || (w == best_w && l > best_key))) {
+                    best = cb;
+                    best_key = l;
+                    best_w = w;
+                }
+            }
+            if (P.superpixels == 1u && !is_surface) {
+                let cb = bound_at(c, 0u);
+                let w = width(over(fr, over(cb, back)));
+                if (w < P.budget && w >= best_w) {
+                    best = cb;
+                    best_key = 255u;
+                    best_w = w;
+                }
+            }
+            levels[c] = best_key;
+            if (best_key == 255u) {
+                n_sp = n_sp + 1u;
+            } else {
+                level_cells[best_key] = level_cells[best_key] + 1u;
+            }
+            back = over(best, back);
+        }
+    }
+    // Cell merging (Sec. 6.2): pairs of aligned runs of equal size and level, level by level.
+    for (var c = c0; c < c1; c = c + 1u) {
+        spans[c] = span_of(c, levels[c]);
+    }
+    var cnt = n;
+    for (var m = 0u; m < P.max_level; m = m + 1u) {
+        let size = 1u << m;
+        var i = 0u;
+        var k = 0u;
+        while (i < cnt) {
+            var a = spans[c0 + i];
+            var step = 1u;
+            if (i + 1u < cnt) {
+                let bs = spans[c0 + i + 1u];
+                let za = cells[a.first].z;
+                let zb = cells[bs.first].z;
+                if (a.superpixel == 0u && bs.superpixel == 0u && a.level == bs.level && a.level > m
+                    && a.count == size && bs.count == size && za % (2u * size) == 0u && zb == za + size) {
+                    a.count = 2u * size;
+                    step = 2u;
+                }
+            }
+            spans[c0 + k] = a;
+            k = k + 1u;
+            i = i + step;
+        }
+        cnt = k;
+    }
+    // What the ray caster reads: depth samples of each span, super-pixel values.
+    var n_merged = 0u;
+    var n_refs = 0u;
+    for (var s = 0u; s < cnt; s = s + 1u) {
+        var sp = spans[c0 + s];
+        sp.step = 1u << sp.level;
+        sp.k0 = cells[sp.first].z * P.dz;
+        sp.n = sp.count * P.dz / sp.step;
+        if (sp.superpixel == 1u) {
+            let b0 = bound_at(sp.first, 0u);
+            sp.sp = 0.5 * (b0.lo + b0.hi);
+        } else {
+            n_merged = n_merged + sp.count - 1u;
+            for (var i = 0u; i < sp.count; i = i + 1u) {
+                let cl = cells[sp.first + i];
+                n_refs = n_refs + select(cl.unique_end, cl.end, i + 1u == sp.count) - cl.start;
+            }
+        }
+        spans[c0 + s] = sp;
+    }
+    span_count[b] = cnt;
+    var lsum = 0u;
+    for (var l = 0u; l < LEVELS; l = l + 1u) {
+        lsum = lsum + l * level_cells[l];
+        if (level_cells[l] > 0u) {
+            atomicAdd(&plan_stats[l], level_cells[l]);
+        }
+    }
+    atomicAdd(&plan_stats[7], n_sp);
+    atomicAdd(&plan_stats[8], n_surface);
+    atomicAdd(&plan_stats[9], n_merged);
+    atomicAdd(&plan_stats[10], n_refs);
+    let nn = f32(n);
+    let sampled = n - n_sp;
+    let adapted = sampled - level_cells[0];
+    var predicted = 0.0;
+    if (P.tolerance >= 0.0) {
+        predicted = width(back);
+    }
+    summaries[2u * b] = vec4<f32>(predicted, f32(lsum) / f32(max(sampled, 1u)),
+                                  f32(level_cells[0]) / nn, f32(adapted) / nn);
+    summaries[2u * b + 1u] = vec4<f32>(f32(n_sp) / nn, 0.0, 0.0, 0.0);
+}

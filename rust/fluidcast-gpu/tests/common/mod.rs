@@ -1,0 +1,101 @@
+//! Scenes and helpers shared by the GPU tests.
+#![allow(dead_code)]
+
+use fluidcast_gpu::Gpu;
+use fluidcast_render::PlanParams;
+use fluidcast_sph::Particles;
+use fluidcast_view::{Camera, TransferFunction};
+
+/// The GPU, or `None` (with a SKIPPED line) when there is no adapter. Without any wgpu adapter
+/// the tests print why and skip, unless FLUIDCAST_REQUIRE_GPU=1 (scripts/test.sh sets it: it
+/// installs Mesa's lavapipe), which turns that into a failure.
+pub fn gpu() -> Option<Gpu> {
+    match Gpu::new() {
+        Ok(g) => {
+            eprintln!("GPU adapter: {}", g.adapter);
+            Some(g)
+        }
+        Err(e) => {
+            if std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() == Ok("1") {
+                panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}");
+            }
+            eprintln!("SKIPPED: {e}");
+            None
+        }
+    }
+}
+
+pub fn cloud(n: usize, seed: u32) -> Particles {
+    let mut s = seed.max(1);
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        s as f32 / u32::MAX as f32
+    };
+    let mut p = Particles::default();
+    for _ in 0..n {
+        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
+        p.positions.push(x);
+        p.radii.push(0.12 + 0.08 * rnd());
+        p.volumes.push(0.002 * (0.5 + rnd()));
+        p.masses.push(1.0 + rnd());
+        p.values.push(x[0] + 2.0 * x[1] * x[1]);
+    }
+    p
+}
+
+/// Viridis over the cloud's values [-0.5, 1], opacity per 0.15 world units.
+pub fn cloud_tf() -> TransferFunction {
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    tf.unit_distance = 0.15;
+    tf
+}
+
+/// Full rate, the default relaxed plan at E_I = 0.004, and the strict plan.
+pub fn modes() -> [(&'static str, PlanParams); 3] {
+    [
+        (
+            "off",
+            PlanParams {
+                tolerance: None,
+                ..Default::default()
+            },
+        ),
+        ("0.004", PlanParams::default()),
+        ("strict 0.004", PlanParams::default().strict()),
+    ]
+}
+
+/// The shared double dam break (velocity magnitude, inferno, an oblique camera), or `None`
+/// with a SKIPPED line when ../shared/data is not there.
+pub fn shared_ddb() -> Option<(Particles, TransferFunction, Camera)> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu");
+    if !path.exists() {
+        eprintln!("SKIPPED: {} not present", path.display());
+        return None;
+    }
+    let ds = fluidcast_io::read_dataset(&path).unwrap();
+    let spec = fluidcast_sph::ParticleSpec {
+        quantity: Some("velocity:mag".parse().unwrap()),
+        ..Default::default()
+    };
+    let p = Particles::from_dataset(&ds, &spec).unwrap();
+    let (lo, hi) = p.value_range();
+    let mut tf = TransferFunction::preset("inferno")
+        .unwrap()
+        .with_range(lo as f64, hi as f64)
+        .unwrap();
+    tf.unit_distance = 0.1;
+    let mut cam = Camera::default();
+    let (a, b) = p.support_bounds();
+    cam.reset(a.map(f64::from), b.map(f64::from));
+    cam.azimuth(30.0);
+    cam.elevation(25.0);
+    cam.orthogonalize_view_up();
+    Some((p, tf, cam))
+}
