@@ -260,44 +260,59 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut gpu_rows = Vec::new();
     if let Some(g) = &gpu {
         println!(
-            "\nGPU ray casting on {} (grid and plan on the CPU, as above); GPU memory {:.1} MiB; medians in ms",
+            "\nGPU (every stage) on {}; GPU memory held {:.1} MiB; medians in ms (wall clock, then GPU timestamps)",
             g.adapter,
             gpu_memory as f64 / (1024.0 * 1024.0)
         );
+        let kernels = ["gpu_grid", "gpu_sort", "gpu_adapt", "gpu_raycast"];
         println!(
-            "{:<10} {:>8} {:>12} {:>12} {:>9} {:>14} {:>14} {:>16}",
+            "{:<10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>10} {:>12} {:>14} {:>14} {:>12}",
             "E_I",
-            "upload",
+            "grid",
+            "adapt",
             "raycast",
-            "GPU kernel",
             "total",
-            "RC vs CPU RC",
+            "k:grid",
+            "k:sort",
+            "k:adapt",
+            "k:raycast",
+            "total vs CPU",
             "max |GPU-CPU|",
             "% px > 1e-3"
         );
+        let cell = |v: f64| {
+            if v.is_nan() {
+                "n/a".to_string()
+            } else {
+                format!("{v:.2}")
+            }
+        };
         for (t, tol) in tols.iter().enumerate() {
             let (r, c) = (&gpu_runs[t], &runs[t]);
             let name = tol.map_or("off".to_string(), |e| e.to_string());
-            let kernel = r.median("gpu_raycast");
+            let k: Vec<f64> = kernels.iter().map(|s| r.median(s)).collect();
             let share = 100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len().max(1) as f64;
+            let speedup = c.median("total") / r.median("total");
             println!(
-                "{:<10} {:>8.1} {:>12.1} {:>12} {:>9.1} {:>14} {:>14.5} {:>16.4}",
+                "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>9} {:>9} {:>10} {:>12} {:>14} {:>14.5} {:>12.4}",
                 name,
-                r.median("upload"),
+                r.median("grid"),
+                r.median("adapt"),
                 r.median("raycast"),
-                if kernel.is_nan() {
-                    "n/a".to_string()
-                } else {
-                    format!("{kernel:.1}")
-                },
                 r.median("total"),
-                format!("{:.2}x", c.median("raycast") / r.median("raycast")),
+                cell(k[0]),
+                cell(k[1]),
+                cell(k[2]),
+                cell(k[3]),
+                format!("{speedup:.2}x"),
                 r.max_err,
                 share
             );
-            gpu_rows.push(json!({"error_tolerance": tol, "upload_ms": r.median("upload"), "raycast_ms": r.median("raycast"),
-                                 "gpu_kernel_ms": if kernel.is_nan() { None } else { Some(kernel) },
-                                 "total_ms": r.median("total"), "speedup_raycast_vs_cpu": c.median("raycast") / r.median("raycast"),
+            let opt = |v: f64| if v.is_nan() { None } else { Some(v) };
+            gpu_rows.push(json!({"error_tolerance": tol, "grid_ms": r.median("grid"), "adapt_ms": r.median("adapt"),
+                                 "raycast_ms": r.median("raycast"), "total_ms": r.median("total"),
+                                 "gpu_grid_ms": opt(k[0]), "gpu_sort_ms": opt(k[1]), "gpu_adapt_ms": opt(k[2]),
+                                 "gpu_raycast_ms": opt(k[3]), "speedup_total_vs_cpu": speedup,
                                  "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share}));
         }
     }
