@@ -357,11 +357,9 @@ impl Gpu {
         let b_vparts = self.buffer("view particles", 32 * n as u64, RW, None);
         let b_counters = self.upload("counters", &[u32::MAX, 0, 0, 0, 0, 0, 0, 0]);
         let n32 = n as u32;
-        let mut enc = self.encoder();
-        {
-            let mut pass = timer.pass(&mut enc, "gpu_grid");
+        self.submit_pass(&mut timer, "gpu_grid", |pass| {
             self.dispatch(
-                &mut pass,
+                pass,
                 &self.pipes.view,
                 &[
                     (0, &b_frame),
@@ -371,8 +369,7 @@ impl Gpu {
                 ],
                 n32.div_ceil(256),
             );
-        }
-        self.queue.submit([enc.finish()]);
+        });
         let c: Vec<u32> = cast(&self.fetch(&[(&b_counters, 8)])?[0]);
         let (zmin, zmax) = (unordered(c[0]) as f64, unordered(c[1]) as f64);
         let Some((near, far)) = depth_range(zmin, zmax, frame.parallel.is_none()) else {
@@ -400,11 +397,9 @@ impl Gpu {
         let b_depths = self.upload("depths", &zs);
         let b_foot = self.buffer("footprints", 32 * n as u64, RW, None);
         let b_counts = self.buffer("pair counts", 4 * n as u64, RW, None);
-        let mut enc = self.encoder();
-        {
-            let mut pass = timer.pass(&mut enc, "gpu_grid");
+        self.submit_pass(&mut timer, "gpu_grid", |pass| {
             self.dispatch(
-                &mut pass,
+                pass,
                 &self.pipes.footprint,
                 &[
                     (0, &b_frame),
@@ -416,9 +411,8 @@ impl Gpu {
                 ],
                 n32.div_ceil(256),
             );
-            self.scan(&mut pass, &b_counts, n32, 0);
-        }
-        self.queue.submit([enc.finish()]);
+            self.scan(pass, &b_counts, n32, 0);
+        });
         let c: Vec<u32> = cast(&self.fetch(&[(&b_counters, 32)])?[0]);
         stats.particles_visible = c[2] as usize;
         let pairs = c[3] as u64 * 256 + c[4] as u64;
@@ -663,6 +657,21 @@ impl Gpu {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
     }
 
+    /// Records one timed compute pass with `f` and submits it.
+    fn submit_pass(
+        &self,
+        timer: &mut Timer,
+        name: &'static str,
+        f: impl FnOnce(&mut wgpu::ComputePass),
+    ) {
+        let mut enc = self.encoder();
+        {
+            let mut pass = timer.pass(&mut enc, name);
+            f(&mut pass);
+        }
+        self.queue.submit([enc.finish()]);
+    }
+
     fn frame_buffer(&self, u: &FrameUniform) -> wgpu::Buffer {
         self.buffer(
             "frame",
@@ -815,12 +824,10 @@ impl Gpu {
         let b_rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let b_depth = self.buffer("depth", 4 * n_px, RW, None);
         let b_samples = self.buffer("samples", 4 * n_px, RW, None);
-        let mut enc = self.encoder();
-        {
-            let mut pass = timer.pass(&mut enc, "gpu_raycast");
-            let d = params.grid.bundle;
+        let d = params.grid.bundle;
+        self.submit_pass(timer, "gpu_raycast", |pass| {
             self.dispatch_2d(
-                &mut pass,
+                pass,
                 &self.pipes.raycast,
                 &[
                     (0, &b.frame),
@@ -840,8 +847,7 @@ impl Gpu {
                 ],
                 (w.div_ceil(d), h.div_ceil(d)),
             );
-        }
-        self.queue.submit([enc.finish()]);
+        });
         let got = self.fetch(&[
             (&b_rgba, 16 * n_px),
             (&b_depth, 4 * n_px),
