@@ -2,13 +2,7 @@ use super::*;
 use fluidcast_view::Camera;
 
 fn cloud(n: usize, seed: u32) -> Particles {
-    let mut s = seed;
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s as f32 / u32::MAX as f32
-    };
+    let mut rnd = fluidcast_testkit::rng(seed);
     let mut p = Particles::default();
     for _ in 0..n {
         p.positions.push([rnd() - 0.5, rnd() - 0.5, rnd() - 0.5]);

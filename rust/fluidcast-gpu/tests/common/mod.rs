@@ -26,23 +26,7 @@ pub fn gpu() -> Option<Gpu> {
 }
 
 pub fn cloud(n: usize, seed: u32) -> Particles {
-    let mut s = seed.max(1);
-    let mut rnd = move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s as f32 / u32::MAX as f32
-    };
-    let mut p = Particles::default();
-    for _ in 0..n {
-        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
-        p.positions.push(x);
-        p.radii.push(0.12 + 0.08 * rnd());
-        p.volumes.push(0.002 * (0.5 + rnd()));
-        p.masses.push(1.0 + rnd());
-        p.values.push(x[0] + 2.0 * x[1] * x[1]);
-    }
-    p
+    fluidcast_testkit::cloud(n, seed, (0.12, 0.08))
 }
 
 /// Viridis over the cloud's values [-0.5, 1], opacity per 0.15 world units.

@@ -4,31 +4,13 @@
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
-/// A xorshift generator of values in [0, 1] (seed 0 is treated as 1).
-pub fn rng(seed: u32) -> impl FnMut() -> f32 {
-    let mut s = seed.max(1);
-    move || {
-        s ^= s << 13;
-        s ^= s >> 17;
-        s ^= s << 5;
-        s as f32 / u32::MAX as f32
-    }
-}
+#[allow(unused_imports)]
+pub use fluidcast_testkit::rng;
 
-/// `n` random particles in the unit cube around the origin, with varied radii and
-/// volumes and the smooth attribute x + 2y².
+/// `n` random particles in the unit cube around the origin, with varied radii (0.15–0.25)
+/// and volumes and the smooth attribute x + 2y².
 pub fn cloud(n: usize, seed: u32) -> Particles {
-    let mut rnd = rng(seed);
-    let mut p = Particles::default();
-    for _ in 0..n {
-        let x = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
-        p.positions.push(x);
-        p.radii.push(0.15 + 0.1 * rnd());
-        p.volumes.push(0.002 * (0.5 + rnd()));
-        p.masses.push(1.0 + rnd());
-        p.values.push(x[0] + 2.0 * x[1] * x[1]);
-    }
-    p
+    fluidcast_testkit::cloud(n, seed, (0.15, 0.1))
 }
 
 /// A lattice slab of (2·6+1)² × `nz` particles, spacing 0.05, support radius 0.1, value 0.7,
