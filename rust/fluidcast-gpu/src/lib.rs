@@ -43,6 +43,8 @@ pub enum GpuError {
     BundleTooLarge(u32),
     #[error("the view needs {0} particle-cell pairs, more than the GPU renderer's limit of {1}; render a smaller image, fewer particles or use --backend cpu")]
     TooManyPairs(u64, u64),
+    #[error("the view has {0} non-empty cells, more than the GPU renderer's limit of {1}; render a smaller image or use --backend cpu")]
+    TooManyCells(u64, u64),
     #[error("the view has {0} bundles x {1} cells, too many for the GPU grid's 32-bit cell keys; render a smaller image or lower --sampling")]
     GridTooLarge(u64, u64),
     #[error("{0} particles are more than the GPU renderer takes ({1})")]

@@ -485,7 +485,7 @@ impl Gpu {
         let ncells = c[5];
         stats.cells = ncells as u64;
         if ncells as u64 * BOUND_BYTES > self.max_binding {
-            return Err(GpuError::TooManyPairs(
+            return Err(GpuError::TooManyCells(
                 ncells as u64,
                 self.max_binding / BOUND_BYTES,
             ));

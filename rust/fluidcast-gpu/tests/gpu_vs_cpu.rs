@@ -3,7 +3,7 @@
 //! `common::gpu`).
 mod common;
 
-use common::{cloud, cloud_tf, gpu, modes, shared_ddb};
+use common::{cloud, cloud_tf, gpu, modes, shared_ddb, shared_pysph};
 use fluidcast_gpu::{Gpu, GpuError};
 use fluidcast_render::{render_adaptive, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel, Particles};
@@ -107,26 +107,29 @@ fn gpu_refuses_what_it_cannot_do() {
 }
 
 #[test]
-fn gpu_matches_cpu_on_the_shared_double_dam_break() {
-    let Some((p, tf, cam)) = shared_ddb() else {
-        return;
-    };
+fn gpu_matches_cpu_on_the_shared_datasets() {
     let Some(g) = gpu() else { return };
-    for (name, adaptive) in modes() {
-        let prm = RenderParams {
-            width: 160,
-            height: 120,
-            adaptive,
-            ..Default::default()
-        };
-        let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
-        eprintln!("double dam break {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
-        // As above: only support-edge samples differ; here a step may be more opaque than in
-        // the synthetic scene, so the bound is on how many pixels and on the RMSE.
-        assert!(
-            frac <= 1e-3 && rmse <= 1e-3,
-            "{name}: max {max}, RMSE {rmse}, {frac} above 1e-3"
-        );
+    for (data, scene) in [
+        ("double dam break", shared_ddb()),
+        ("PySPH dam break", shared_pysph()),
+    ] {
+        let Some((p, tf, cam)) = scene else { continue };
+        for (name, adaptive) in modes() {
+            let prm = RenderParams {
+                width: 160,
+                height: 120,
+                adaptive,
+                ..Default::default()
+            };
+            let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
+            eprintln!("{data} {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
+            // As above: only support-edge samples differ; here a step may be more opaque than
+            // in the synthetic scene, so the bound is on how many pixels and on the RMSE.
+            assert!(
+                frac <= 1e-3 && rmse <= 1e-3,
+                "{data} {name}: max {max}, RMSE {rmse}, {frac} above 1e-3"
+            );
+        }
     }
 }
 

@@ -5,7 +5,7 @@ mod common;
 
 use std::collections::BTreeMap;
 
-use common::{cloud, cloud_tf, gpu, modes, shared_ddb};
+use common::{cloud, cloud_tf, gpu, modes, shared_ddb, shared_pysph};
 use fluidcast_gpu::{Gpu, GpuDump};
 use fluidcast_render::{plan_adaptive, render_adaptive, AdaptivePlan, PlanParams, RenderParams};
 use fluidcast_sph::Particles;
@@ -114,14 +114,19 @@ fn scenes() -> Vec<Scene> {
         tf,
         size: (128, 96),
     });
-    if let Some((p, tf, cam)) = shared_ddb() {
-        out.push(Scene {
-            name: "double dam break",
-            p,
-            tf,
-            cam,
-            size: (160, 120),
-        });
+    for (name, scene) in [
+        ("double dam break", shared_ddb()),
+        ("PySPH dam break", shared_pysph()),
+    ] {
+        if let Some((p, tf, cam)) = scene {
+            out.push(Scene {
+                name,
+                p,
+                tf,
+                cam,
+                size: (160, 120),
+            });
+        }
     }
     out
 }

@@ -107,28 +107,24 @@ fn screen_rect(c: vec3<f32>, h: f32) -> vec4<u32> {
     return vec4<u32>(u32(px0), u32(px1), u32(py0), u32(py1));
 }
 
-@compute @workgroup_size(256)
-fn footprint(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
-             @builtin(local_invocation_index) li: u32) {
-    let j = group_index(wg, nw) * 256u + li;
-    if (j >= P.n_particles) {
-        return;
-    }
+/// Particle j's bundle rectangle and cell depth range into foot, its pair count into counts;
+/// returns the count (0 when its support misses every cell).
+fn particle_footprint(j: u32) -> u32 {
     counts[j] = 0u;
     let a = vparts[2u * j];
     let c = a.xyz;
     let h = a.w;
     if (c.z + h < P.near || c.z - h > P.far) {
-        return;
+        return 0u;
     }
     let r = screen_rect(c, h);
     if (r.x >= r.y || r.z >= r.w) {
-        return;
+        return 0u;
     }
     let k0 = lower_bound(c.z - h, false);
     let k1 = lower_bound(c.z + h, true);
     if (k0 >= k1) {
-        return;
+        return 0u;
     }
     let d = P.bundle;
     let f = vec4<u32>(r.x / d, (r.y - 1u) / d, r.z / d, (r.w - 1u) / d);
@@ -138,9 +134,33 @@ fn footprint(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: 
     foot[2u * j + 1u] = vec4<u32>(z0, z1, 0u, 0u);
     let n = (f.y - f.x + 1u) * (f.w - f.z + 1u) * (z1 - z0 + 1u);
     counts[j] = n;
-    atomicAdd(&counters[2], 1u);
-    atomicAdd(&counters[3], n >> 8u);
-    atomicAdd(&counters[4], n & 255u);
+    return n;
+}
+
+// Per workgroup: visible particles, sum of pairs / 256, sum of pairs % 256 (added to the
+// global counters once per workgroup, not once per particle).
+var<workgroup> wg_sums: array<atomic<u32>, 3>;
+
+@compute @workgroup_size(256)
+fn footprint(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
+             @builtin(local_invocation_index) li: u32) {
+    if (li < 3u) {
+        atomicStore(&wg_sums[li], 0u);
+    }
+    workgroupBarrier();
+    let j = group_index(wg, nw) * 256u + li;
+    if (j < P.n_particles) {
+        let n = particle_footprint(j);
+        if (n > 0u) {
+            atomicAdd(&wg_sums[0], 1u);
+            atomicAdd(&wg_sums[1], n >> 8u);
+            atomicAdd(&wg_sums[2], n & 255u);
+        }
+    }
+    workgroupBarrier();
+    if (li < 3u) {
+        atomicAdd(&counters[2u + li], atomicLoad(&wg_sums[li]));
+    }
 }
 
 @compute @workgroup_size(256)
@@ -172,14 +192,21 @@ fn emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<
 @compute @workgroup_size(256)
 fn cell_starts(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
                @builtin(local_invocation_index) li: u32) {
-    let i = group_index(wg, nw) * 256u + li;
-    if (i >= P.n_pairs) {
-        return;
+    if (li == 0u) {
+        atomicStore(&wg_sums[0], 0u);
     }
-    let first = i == 0u || (sorted_keys[i] >> 1u) != (sorted_keys[i - 1u] >> 1u);
-    starts[i] = select(0u, 1u, first);
-    if (first) {
-        atomicAdd(&counters[5], 1u);
+    workgroupBarrier();
+    let i = group_index(wg, nw) * 256u + li;
+    if (i < P.n_pairs) {
+        let first = i == 0u || (sorted_keys[i] >> 1u) != (sorted_keys[i - 1u] >> 1u);
+        starts[i] = select(0u, 1u, first);
+        if (first) {
+            atomicAdd(&wg_sums[0], 1u);
+        }
+    }
+    workgroupBarrier();
+    if (li == 0u) {
+        atomicAdd(&counters[5], atomicLoad(&wg_sums[0]));
     }
 }
 

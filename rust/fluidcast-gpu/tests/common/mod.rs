@@ -54,11 +54,13 @@ pub fn modes() -> [(&'static str, PlanParams); 3] {
     ]
 }
 
-/// The shared double dam break (velocity magnitude, inferno, an oblique camera), or `None`
-/// with a SKIPPED line when ../shared/data is not there.
-pub fn shared_ddb() -> Option<(Particles, TransferFunction, Camera)> {
+/// A shared dataset coloured by velocity magnitude (inferno over its range, opacity per 0.1
+/// world units) under an oblique camera that frames it, or `None` with a SKIPPED line when
+/// ../shared/data does not hold it.
+pub fn shared_scene(file: &str) -> Option<(Particles, TransferFunction, Camera)> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu");
+        .join("../../../shared/data")
+        .join(file);
     if !path.exists() {
         eprintln!("SKIPPED: {} not present", path.display());
         return None;
@@ -82,4 +84,14 @@ pub fn shared_ddb() -> Option<(Particles, TransferFunction, Camera)> {
     cam.elevation(25.0);
     cam.orthogonalize_view_up();
     Some((p, tf, cam))
+}
+
+/// The shared SPlisHSPlasH double dam break (see [`shared_scene`]).
+pub fn shared_ddb() -> Option<(Particles, TransferFunction, Camera)> {
+    shared_scene("splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu")
+}
+
+/// The shared PySPH 3D dam break, fluid only (see [`shared_scene`]).
+pub fn shared_pysph() -> Option<(Particles, TransferFunction, Camera)> {
+    shared_scene("pysph_dambreak3d/dam_break_3d_fluid_01180.vtu")
 }
