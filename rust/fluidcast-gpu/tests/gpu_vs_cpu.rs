@@ -104,6 +104,39 @@ fn gpu_refuses_what_it_cannot_do() {
     };
     let e = g.render_adaptive(&p, None, &Camera::default(), &tf, &prm);
     assert!(matches!(e, Err(GpuError::BundleTooLarge(16))));
+    // Bad parameters get the CPU renderer's errors.
+    let bad = RenderParams {
+        width: 0,
+        ..Default::default()
+    };
+    let e = g.render_adaptive(&p, None, &Camera::default(), &tf, &bad);
+    assert!(e.unwrap_err().to_string().contains("image size 0x512"));
+    let bad = RenderParams {
+        adaptive: fluidcast_render::PlanParams {
+            tolerance: Some(2.0),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let e = g.render_adaptive(&p, None, &Camera::default(), &tf, &bad);
+    assert!(e.unwrap_err().to_string().contains("tolerance 2"));
+    // Nothing to draw: no particles, or all behind the camera. A blank image, as on the CPU.
+    let small = RenderParams {
+        width: 16,
+        height: 12,
+        ..Default::default()
+    };
+    let behind = Camera {
+        position: [0.0, 0.0, 5.0],
+        focal_point: [0.0, 0.0, 10.0],
+        ..Default::default()
+    };
+    for (q, cam) in [(Particles::default(), Camera::default()), (p, behind)] {
+        let r = g.render_adaptive(&q, None, &cam, &tf, &small).unwrap();
+        assert!(r.image.rgba.iter().all(|c| *c == [0.0; 4]));
+        assert!(r.image.depth.iter().all(|z| z.is_infinite()));
+        assert_eq!(r.stats.pairs, 0);
+    }
 }
 
 #[test]
