@@ -8,8 +8,7 @@ use fluidcast_grid::{depth_range, Cell, SampleDepths};
 use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, PlanError, PlanStats};
 use fluidcast_render::{
-    bundle_aovs, ms, validate, AdaptivePlan, RenderError, RenderParams, RenderStats,
-    SURFACE_THRESHOLD,
+    bundle_aovs, ms, plan_surface, validate, AdaptivePlan, RenderError, RenderParams, RenderStats,
 };
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction, ViewFrame};
@@ -498,16 +497,7 @@ impl Gpu {
         self.queue.write_buffer(&b_frame, 0, bytemuck::bytes_of(&u));
         let nc = ncells as u64;
         let b_bcells = self.buffer("bundle cells", 4 * (nb as u64 + 1), RW, None);
-        let computed;
-        let surface = match surface {
-            Some(s) => Some(s),
-            None if params.adaptive.uses_surface_cells() => {
-                computed = particles.surface_flags(SURFACE_THRESHOLD);
-                Some(computed.as_slice())
-            }
-            None => None,
-        };
-        let flags: Vec<u32> = match surface {
+        let flags: Vec<u32> = match plan_surface(particles, surface, &params.adaptive) {
             Some(s) if params.adaptive.uses_surface_cells() => {
                 s.iter().map(|&f| f as u32).collect()
             }

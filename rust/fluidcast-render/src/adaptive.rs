@@ -1,8 +1,9 @@
+use std::borrow::Cow;
 use std::time::Instant;
 
 use fluidcast_grid::{PerspectiveGrid, Ray, ViewParticle};
 use fluidcast_image::Image;
-use fluidcast_plan::{BundleSummary, FieldParams, SamplingPlan};
+use fluidcast_plan::{BundleSummary, FieldParams, PlanParams, SamplingPlan};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use rayon::prelude::*;
@@ -26,6 +27,23 @@ pub struct AdaptiveRender {
 
 /// One bundle's output: bundle index, (premultiplied RGBA, depth) per pixel, samples taken.
 type BundleResult = (usize, Vec<([f32; 4], f32)>, u64);
+
+/// The surface flags a plan gets: those given, else, when the plan uses the surface rule
+/// ([`PlanParams::uses_surface_cells`]), computed with [`SURFACE_THRESHOLD`]; `None` otherwise.
+/// Shared by the CPU and GPU planners so that both see the same flags.
+pub fn plan_surface<'a>(
+    particles: &Particles,
+    given: Option<&'a [bool]>,
+    adaptive: &PlanParams,
+) -> Option<Cow<'a, [bool]>> {
+    match given {
+        Some(s) => Some(Cow::Borrowed(s)),
+        None if adaptive.uses_surface_cells() => {
+            Some(Cow::Owned(particles.surface_flags(SURFACE_THRESHOLD)))
+        }
+        None => None,
+    }
+}
 
 /// The first two stages of the adaptive renderer for one view: the sparse perspective grid and
 /// the sampling plan, with their timings (`grid`, `adapt`) in `stats`. The ray casting stage
@@ -70,21 +88,13 @@ pub fn plan_adaptive(
 
     let t1 = Instant::now();
     let a = &params.adaptive;
-    let computed;
-    let surface = match surface {
-        Some(s) => Some(s),
-        None if a.uses_surface_cells() => {
-            computed = particles.surface_flags(SURFACE_THRESHOLD);
-            Some(computed.as_slice())
-        }
-        None => None,
-    };
+    let surface = plan_surface(particles, surface, a);
     let field = FieldParams {
         kernel: params.kernel,
         field: params.field,
         min_transmittance: params.min_transmittance,
     };
-    let plan = SamplingPlan::build(&grid, tf, surface, a, &field)?;
+    let plan = SamplingPlan::build(&grid, tf, surface.as_deref(), a, &field)?;
     stats.plan = Some(plan.stats.clone());
     stats.stages.push(("adapt", ms(t1)));
     Ok(AdaptivePlan { grid, plan, stats })

@@ -25,8 +25,8 @@ use std::sync::Arc;
 use std::time::Instant;
 
 pub use adaptive::{
-    bundle_aovs, plan_adaptive, plan_aovs, render_adaptive, AdaptivePlan, AdaptiveRender,
-    SURFACE_THRESHOLD,
+    bundle_aovs, plan_adaptive, plan_aovs, plan_surface, render_adaptive, AdaptivePlan,
+    AdaptiveRender, SURFACE_THRESHOLD,
 };
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats};
