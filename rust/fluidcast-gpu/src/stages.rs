@@ -262,7 +262,7 @@ impl Gpu {
         let zs: Vec<f32> = depths.z.iter().map(|&z| z as f32).collect();
         let b = Buffers {
             frame: self.frame_buffer(&u),
-            tf: self.tf_buffers(tf),
+            tf: self.tf_buffer(tf),
             vparts: self.upload("view particles", &parts),
             depths: self.upload("depths", &zs),
             cells: self.upload("cells", &cells),
@@ -512,7 +512,7 @@ impl Gpu {
         let b_span_count = self.buffer("span counts", 4 * nb as u64, RW, None);
         let b_summaries = self.buffer("bundle summaries", 32 * nb as u64, RW, None);
         let b_plan_stats = self.upload("plan stats", &[0u32; 16]);
-        let tfb = self.tf_buffers(tf);
+        let tfb = self.tf_buffer(tf);
         let mut enc = self.encoder();
         {
             let mut pass = timer.pass(&mut enc, "gpu_grid");
@@ -530,8 +530,7 @@ impl Gpu {
                     &self.pipes.analyse,
                     &[
                         (0, &b_frame),
-                        (1, &tfb.0),
-                        (2, &tfb.1),
+                        (1, &tfb),
                         (3, &b_vparts),
                         (4, &b_depths),
                         (5, &b_cells),
@@ -671,22 +670,20 @@ impl Gpu {
         )
     }
 
-    /// The transfer function's colour (x, r, g, b) and opacity (x, α) control points.
-    fn tf_buffers(&self, tf: &TransferFunction) -> (wgpu::Buffer, wgpu::Buffer) {
-        let colors: Vec<[f32; 4]> = tf
+    /// The transfer function's control points, as common.wgsl's `tf`: colour (x, r, g, b),
+    /// then opacity (x, α, 0, 0).
+    fn tf_buffer(&self, tf: &TransferFunction) -> wgpu::Buffer {
+        let points: Vec<[f32; 4]> = tf
             .colors
             .iter()
             .map(|(x, c)| [*x as f32, c[0] as f32, c[1] as f32, c[2] as f32])
+            .chain(
+                tf.opacity
+                    .iter()
+                    .map(|(x, a)| [*x as f32, *a as f32, 0.0, 0.0]),
+            )
             .collect();
-        let opacity: Vec<[f32; 2]> = tf
-            .opacity
-            .iter()
-            .map(|(x, a)| [*x as f32, *a as f32])
-            .collect();
-        (
-            self.upload("colors", &colors),
-            self.upload("opacity", &opacity),
-        )
+        self.upload("transfer function", &points)
     }
 
     /// Runs `pipe` over `groups` workgroups (folded into two dimensions past 32768), with
@@ -821,8 +818,7 @@ impl Gpu {
                 &self.pipes.raycast,
                 &[
                     (0, &b.frame),
-                    (1, &b.tf.0),
-                    (2, &b.tf.1),
+                    (1, &b.tf),
                     (3, &b.vparts),
                     (4, &b.depths),
                     (5, &b.spans),
@@ -881,7 +877,7 @@ impl Gpu {
 /// The buffers the ray caster reads.
 struct Buffers {
     frame: wgpu::Buffer,
-    tf: (wgpu::Buffer, wgpu::Buffer),
+    tf: wgpu::Buffer,
     vparts: wgpu::Buffer,
     depths: wgpu::Buffer,
     cells: wgpu::Buffer,

@@ -68,8 +68,9 @@ struct Span {
 };
 
 @group(0) @binding(0) var<uniform> P: Frame;
-@group(0) @binding(1) var<storage, read> colors: array<vec4<f32>>;  // (x, r, g, b)
-@group(0) @binding(2) var<storage, read> opacity: array<vec2<f32>>; // (x, alpha)
+// The transfer function's control points: P.n_colors colour points (x, r, g, b), then
+// P.n_opacity opacity points (x, alpha, 0, 0); x is the map position in [0, 1].
+@group(0) @binding(1) var<storage, read> tf: array<vec4<f32>>;
 
 const PI: f32 = 3.14159265358979;
 const LEVELS: u32 = 7u;
@@ -133,35 +134,28 @@ fn tf_t(q: f32) -> f32 {
     return clamp((q - P.tf_lo) / (P.tf_hi - P.tf_lo), 0.0, 1.0);
 }
 
+/// The piecewise-linear table tf[first..first + n] at map position t: clamped to its end
+/// points, linear between them.
+fn table_at(first: u32, n: u32, t: f32) -> vec3<f32> {
+    var v = tf[first].yzw;
+    if (t > tf[first].x) {
+        v = tf[first + n - 1u].yzw;
+        for (var i = first + 1u; i < first + n; i = i + 1u) {
+            if (t <= tf[i].x) {
+                let d = tf[i].x - tf[i - 1u].x;
+                var f = 1.0;
+                if (d > 0.0) { f = (t - tf[i - 1u].x) / d; }
+                v = mix(tf[i - 1u].yzw, tf[i].yzw, f);
+                break;
+            }
+        }
+    }
+    return v;
+}
+
 /// Colour and opacity per unit distance at map position t (TransferFunction::eval_normalised).
 fn tf_at(t: f32) -> vec4<f32> {
-    var rgb = colors[0].yzw;
-    if (t > colors[0].x) {
-        rgb = colors[P.n_colors - 1u].yzw;
-        for (var i = 1u; i < P.n_colors; i = i + 1u) {
-            if (t <= colors[i].x) {
-                let d = colors[i].x - colors[i - 1u].x;
-                var f = 1.0;
-                if (d > 0.0) { f = (t - colors[i - 1u].x) / d; }
-                rgb = mix(colors[i - 1u].yzw, colors[i].yzw, f);
-                break;
-            }
-        }
-    }
-    var a = opacity[0].y;
-    if (t > opacity[0].x) {
-        a = opacity[P.n_opacity - 1u].y;
-        for (var i = 1u; i < P.n_opacity; i = i + 1u) {
-            if (t <= opacity[i].x) {
-                let d = opacity[i].x - opacity[i - 1u].x;
-                var f = 1.0;
-                if (d > 0.0) { f = (t - opacity[i - 1u].x) / d; }
-                a = mix(opacity[i - 1u].y, opacity[i].y, f);
-                break;
-            }
-        }
-    }
-    return vec4<f32>(rgb, a);
+    return vec4<f32>(table_at(0u, P.n_colors, t), table_at(P.n_colors, P.n_opacity, t).x);
 }
 
 fn tf_eval(q: f32) -> vec4<f32> {

@@ -137,6 +137,27 @@ fn extinction(alpha: f32) -> f32 {
     return -log(1.0 - alpha) / P.unit_distance;
 }
 
+/// Extremes of the table tf[first..first + n] over its control points strictly inside (t0, t1).
+struct Extremes {
+    lo: vec3<f32>,
+    hi: vec3<f32>,
+};
+
+fn table_extremes(first: u32, n: u32, t0: f32, t1: f32) -> Extremes {
+    var e = Extremes(vec3<f32>(3.0e38), vec3<f32>(-3.0e38));
+    for (var i = first; i < first + n; i = i + 1u) {
+        let p = tf[i];
+        if (p.x >= t1) {
+            break;
+        }
+        if (p.x > t0) {
+            e.lo = min(e.lo, p.yzw);
+            e.hi = max(e.hi, p.yzw);
+        }
+    }
+    return e;
+}
+
 /// Exact colour/opacity extremes over the data values [q0, q1] (TfBounds::range): the ends and
 /// the control points strictly inside.
 fn tf_range(q0: f32, q1: f32) -> ValueBound {
@@ -152,28 +173,10 @@ fn tf_range(q0: f32, q1: f32) -> ValueBound {
     }
     let e0 = tf_at(t0);
     let e1 = tf_at(t1);
-    var lo = min(e0, e1);
-    var hi = max(e0, e1);
-    for (var i = 0u; i < P.n_colors; i = i + 1u) {
-        let c = colors[i];
-        if (c.x >= t1) {
-            break;
-        }
-        if (c.x > t0) {
-            lo = vec4<f32>(min(lo.xyz, c.yzw), lo.w);
-            hi = vec4<f32>(max(hi.xyz, c.yzw), hi.w);
-        }
-    }
-    for (var i = 0u; i < P.n_opacity; i = i + 1u) {
-        let o = opacity[i];
-        if (o.x >= t1) {
-            break;
-        }
-        if (o.x > t0) {
-            lo.w = min(lo.w, o.y);
-            hi.w = max(hi.w, o.y);
-        }
-    }
+    let c = table_extremes(0u, P.n_colors, t0, t1);
+    let o = table_extremes(P.n_colors, P.n_opacity, t0, t1);
+    let lo = vec4<f32>(min(min(e0.xyz, e1.xyz), c.lo), min(min(e0.w, e1.w), o.lo.x));
+    let hi = vec4<f32>(max(max(e0.xyz, e1.xyz), c.hi), max(max(e0.w, e1.w), o.hi.x));
     return ValueBound(false, false, lo.xyz, hi.xyz, vec2<f32>(extinction(lo.w), extinction(hi.w)));
 }
 
