@@ -6,7 +6,7 @@ mod common;
 use std::collections::BTreeMap;
 
 use common::{cloud, cloud_tf, gpu, modes, shared_ddb, shared_pysph};
-use fluidcast_gpu::{Gpu, GpuDump};
+use fluidcast_gpu::GpuDump;
 use fluidcast_render::{plan_adaptive, render_adaptive, AdaptivePlan, PlanParams, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
@@ -341,10 +341,17 @@ fn gpu_buffers_are_reused_across_frames() {
         let p = cloud(3000, seed);
         let r: fluidcast_gpu::GpuRender = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         held.push(r.stats.gpu_memory_bytes);
+        // GPU stage timings appear exactly when the adapter has timestamp queries.
+        for stage in ["gpu_grid", "gpu_sort", "gpu_adapt", "gpu_raycast"] {
+            assert_eq!(
+                r.stats.stage(stage).is_some(),
+                g.has_timestamps(),
+                "{stage}"
+            );
+        }
     }
     eprintln!("GPU memory held after each frame: {held:?} bytes");
     assert!(held[0] > 0);
     // Similar frames fit the buffers of the first (grown by half when made).
     assert_eq!(held[1], held[3], "buffers were reallocated: {held:?}");
-    let _ = Gpu::has_timestamps(&g);
 }
