@@ -34,6 +34,8 @@ pub enum ReadErrorKind {
     Array { array: String, problem: String },
     #[error("truncated file: {0}")]
     Truncated(String),
+    #[error("too large: {0}")]
+    TooLarge(String),
     #[error("the VTK reader library failed: {0}")]
     Library(String),
 }

@@ -17,13 +17,14 @@
 
 mod error;
 mod legacy;
+mod payload;
 mod pvd;
 pub mod xml;
 
 use std::path::{Path, PathBuf};
 
 pub use error::{ReadError, ReadErrorKind};
-pub use pvd::{read_collection, Collection, CollectionEntry};
+pub use pvd::{parse_collection, read_collection, Collection, CollectionEntry};
 
 /// The numeric type an array had in the file. Values are always held as `f64`, which
 /// represents every type exactly except 64-bit integers above 2^53.
@@ -89,25 +90,51 @@ impl ScalarType {
         }
     }
 
-    /// Decodes `bytes` (a whole number of values) into `f64`s.
-    pub fn decode(self, bytes: &[u8], big_endian: bool) -> Vec<f64> {
+    /// The inclusive range of an integer type (as `i128`); the whole `i128` range for
+    /// floating-point types.
+    pub fn int_range(self) -> (i128, i128) {
+        use ScalarType::*;
+        match self {
+            I8 => (i8::MIN.into(), i8::MAX.into()),
+            U8 => (0, u8::MAX.into()),
+            I16 => (i16::MIN.into(), i16::MAX.into()),
+            U16 => (0, u16::MAX.into()),
+            I32 => (i32::MIN.into(), i32::MAX.into()),
+            U32 => (0, u32::MAX.into()),
+            I64 => (i64::MIN.into(), i64::MAX.into()),
+            U64 => (0, u64::MAX.into()),
+            F32 | F64 => (i128::MIN, i128::MAX),
+        }
+    }
+
+    /// Decodes `bytes` into `f64`s; an error when they are not a whole number of values.
+    pub fn decode(self, bytes: &[u8], big_endian: bool) -> Result<Vec<f64>, String> {
         use ScalarType::*;
         let n = self.size();
-        let mut out = Vec::with_capacity(bytes.len() / n);
+        if !bytes.len().is_multiple_of(n) {
+            return Err(format!(
+                "{} bytes are not a whole number of {} values",
+                bytes.len(),
+                self.vtk_name()
+            ));
+        }
         macro_rules! conv {
             ($t:ty) => {
-                for c in bytes.chunks_exact(n) {
-                    let a: [u8; std::mem::size_of::<$t>()] = c.try_into().unwrap();
-                    let v = if big_endian {
-                        <$t>::from_be_bytes(a)
-                    } else {
-                        <$t>::from_le_bytes(a)
-                    };
-                    out.push(v as f64);
-                }
+                bytes
+                    .chunks_exact(n)
+                    .map(|c| {
+                        let mut a = [0u8; std::mem::size_of::<$t>()];
+                        a.copy_from_slice(c);
+                        (if big_endian {
+                            <$t>::from_be_bytes(a)
+                        } else {
+                            <$t>::from_le_bytes(a)
+                        }) as f64
+                    })
+                    .collect()
             };
         }
-        match self {
+        Ok(match self {
             I8 => conv!(i8),
             U8 => conv!(u8),
             I16 => conv!(i16),
@@ -118,8 +145,7 @@ impl ScalarType {
             U64 => conv!(u64),
             F32 => conv!(f32),
             F64 => conv!(f64),
-        }
-        out
+        })
     }
 }
 
@@ -234,18 +260,31 @@ impl Dataset {
 /// files with structural problems; every error names the file.
 pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
     let path = path.as_ref();
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase())
-        .unwrap_or_default();
-    let bytes = std::fs::read(path).map_err(|e| ReadError::new(path, ReadErrorKind::Io(e)))?;
+    let ext = extension(path);
+    if !matches!(ext.as_str(), "vtu" | "vtp" | "vtk" | "pvd") {
+        return Err(ReadError::new(
+            path,
+            ReadErrorKind::UnsupportedExtension(ext),
+        ));
+    }
+    let bytes = read_file(path)?;
+    parse_dataset(&bytes, path)
+}
+
+/// Parses a particle file's bytes; `path` names it in errors and its extension chooses the
+/// format. The entry point for fuzzing and for data that is not on disk.
+pub fn parse_dataset(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
+    let ext = extension(path);
     let ds = match ext.as_str() {
-        "vtu" | "vtp" => xml::parse(&bytes, path),
-        "vtk" => legacy::parse(&bytes, path),
+        "vtu" | "vtp" => xml::parse(bytes, path),
+        "vtk" => legacy::parse(bytes, path),
         "pvd" => Err(ReadError::new(
             path,
-            ReadErrorKind::Format("a .pvd is a collection: read it with read_collection".into()),
+            ReadErrorKind::Format(
+                "this is a .pvd collection where one data set (.vtu, .vtp or .vtk) was \
+                 expected; a .pvd cannot list another .pvd"
+                    .into(),
+            ),
         )),
         _ => Err(ReadError::new(
             path,
@@ -254,6 +293,51 @@ pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
     }?;
     validate(&ds)?;
     Ok(ds)
+}
+
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
+/// The most bytes read from something that is not a regular file (a pipe or a device such
+/// as `/dev/zero`), whose length cannot be known in advance.
+pub const MAX_STREAM_BYTES: u64 = 256 << 20;
+
+/// Reads a whole file, refusing one that does not fit in memory and reading at most
+/// [`MAX_STREAM_BYTES`] from pipes and devices.
+pub fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
+    use std::io::Read;
+    let err = |k| ReadError::new(path, k);
+    let f = std::fs::File::open(path).map_err(|e| err(ReadErrorKind::Io(e)))?;
+    let meta = f.metadata().map_err(|e| err(ReadErrorKind::Io(e)))?;
+    if meta.is_dir() {
+        return Err(err(ReadErrorKind::Format("is a directory, not a file".into())));
+    }
+    let limit = if meta.is_file() {
+        fluidcast_mem::check(|| "reading this file".into(), meta.len())
+            .map_err(|e| err(ReadErrorKind::TooLarge(e.to_string())))?;
+        meta.len()
+    } else {
+        MAX_STREAM_BYTES
+    };
+    let mut bytes = Vec::with_capacity(usize::try_from(limit.min(MAX_STREAM_BYTES)).unwrap_or(0));
+    f.take(limit.saturating_add(1))
+        .read_to_end(&mut bytes)
+        .map_err(|e| err(ReadErrorKind::Io(e)))?;
+    if bytes.len() as u64 > limit {
+        return Err(err(ReadErrorKind::TooLarge(if meta.is_file() {
+            "the file grew while it was being read".into()
+        } else {
+            format!(
+                "not a regular file and longer than {} MiB: copy the data into a file first",
+                MAX_STREAM_BYTES >> 20
+            )
+        })));
+    }
+    Ok(bytes)
 }
 
 fn validate(ds: &Dataset) -> Result<(), ReadError> {

@@ -26,10 +26,16 @@ pub struct Collection {
 /// Reads a `.pvd` file's `<DataSet>` list (it does not open the data sets).
 pub fn read_collection(path: impl AsRef<Path>) -> Result<Collection, ReadError> {
     let path = path.as_ref();
+    let bytes = crate::read_file(path)?;
+    parse_collection(&bytes, path)
+}
+
+/// Parses a `.pvd` file's bytes; `path` names it in errors and its folder resolves the
+/// data sets' relative paths.
+pub fn parse_collection(bytes: &[u8], path: &Path) -> Result<Collection, ReadError> {
     let err = |k| ReadError::new(path, k);
-    let bytes = std::fs::read(path).map_err(|e| err(ReadErrorKind::Io(e)))?;
     let dir = path.parent().unwrap_or(Path::new("."));
-    let mut reader = quick_xml::Reader::from_reader(bytes.as_slice());
+    let mut reader = quick_xml::Reader::from_reader(bytes);
     let mut entries = Vec::new();
     let mut saw_collection = false;
     loop {

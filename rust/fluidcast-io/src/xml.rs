@@ -2,60 +2,20 @@
 //!
 //! The XML head (everything before `<AppendedData>`) is parsed with quick-xml; appended data
 //! is addressed by byte (raw) or character (base64) offsets, so it never goes through the XML
-//! parser — raw binary is not valid XML text.
+//! parser — raw binary is not valid XML text. Binary payloads are decoded by [`crate::payload`],
+//! which checks every header against the XML and the file's length before allocating.
 //!
-//! Binary payloads follow VTK's layout: uncompressed = `[nbytes][data]`; compressed =
-//! `[nblocks][block size][last block size][compressed size]*nblocks [blocks]`, where a last
-//! block size of 0 means the last block is full (VTK writes this whenever the array size is an
-//! exact multiple of the block size). Header words are UInt32 or UInt64 (`header_type`).
+//! The reader is as strict as VTK's: unknown byte orders, encodings, header types, formats
+//! and types are errors; a file that does not end with `</VTKFile>` (truncated, or followed
+//! by garbage) is an error; integer values outside their type's range are errors.
 
 use std::collections::HashMap;
-use std::io::Read;
 use std::path::Path;
 
-use base64::Engine;
 use quick_xml::events::{BytesStart, Event};
 
+use crate::payload::{decode_base64, decode_raw, Compressor, Ctx};
 use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Compressor {
-    Zlib,
-    Lz4,
-    Lzma,
-}
-
-#[derive(Debug, Clone, Copy)]
-struct Ctx {
-    big_endian: bool,
-    header: ScalarType,
-    compressor: Option<Compressor>,
-}
-
-impl Ctx {
-    fn hb(&self) -> usize {
-        self.header.size()
-    }
-    fn word(&self, b: &[u8], i: usize) -> Option<u64> {
-        let hb = self.hb();
-        let s = b.get(i * hb..(i + 1) * hb)?;
-        Some(if hb == 4 {
-            let a: [u8; 4] = s.try_into().ok()?;
-            (if self.big_endian {
-                u32::from_be_bytes(a)
-            } else {
-                u32::from_le_bytes(a)
-            }) as u64
-        } else {
-            let a: [u8; 8] = s.try_into().ok()?;
-            if self.big_endian {
-                u64::from_be_bytes(a)
-            } else {
-                u64::from_le_bytes(a)
-            }
-        })
-    }
-}
 
 /// Attributes of one element as owned strings.
 pub(crate) fn attrs(e: &BytesStart) -> Result<HashMap<String, String>, String> {
@@ -67,6 +27,18 @@ pub(crate) fn attrs(e: &BytesStart) -> Result<HashMap<String, String>, String> {
         m.insert(k, v);
     }
     Ok(m)
+}
+
+/// Refuses a start tag whose text holds a `<` (an unclosed tag swallowing the next one,
+/// which quick-xml would read as attribute text but expat, VTK's parser, rejects).
+pub(crate) fn check_tag(e: &BytesStart, at: u64) -> Result<(), String> {
+    if e.contains(&b'<') {
+        return Err(format!(
+            "'<' inside the <{}> tag (an unclosed tag?) near byte {at}",
+            String::from_utf8_lossy(e.name().as_ref())
+        ));
+    }
+    attrs(e).map(|_| ())
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,155 +66,269 @@ struct Piece {
 
 /// Position of the first `needle` in `hay` at or after `from`.
 pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
-    if from >= hay.len() {
-        return None;
-    }
-    hay[from..]
+    hay.get(from..)?
         .windows(needle.len())
         .position(|w| w == needle)
         .map(|p| p + from)
 }
 
-/// Parses a `.vtu` or `.vtp` file's bytes.
-pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
-    let err = |k: ReadErrorKind| ReadError::new(path, k);
-    // Split off the appended section before XML parsing.
-    let (head, appended, appended_b64) = match find(bytes, b"<AppendedData", 0) {
-        Some(start) => {
-            let close = find(bytes, b">", start).ok_or_else(|| {
-                err(ReadErrorKind::Truncated(
-                    "unterminated <AppendedData> tag".into(),
-                ))
-            })?;
-            let tag = String::from_utf8_lossy(&bytes[start..close]);
-            let b64 = tag.contains("encoding=\"base64\"") || tag.contains("encoding='base64'");
-            let us = find(bytes, b"_", close).ok_or_else(|| {
-                err(ReadErrorKind::Truncated(
-                    "appended data has no '_' marker".into(),
-                ))
-            })?;
-            (&bytes[..start], Some(&bytes[us + 1..]), b64)
-        }
-        None => (bytes, None, false),
-    };
+/// The appended-data section: its bytes from just after the `_` marker, and its encoding.
+struct Appended<'a> {
+    data: &'a [u8],
+    base64: bool,
+}
 
+/// Splits the file into the XML head and the appended data, checking the `<AppendedData>`
+/// tag's encoding and that the file ends with `</AppendedData></VTKFile>`.
+fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErrorKind> {
+    let Some(start) = find(bytes, b"<AppendedData", 0) else {
+        return Ok((bytes, None));
+    };
+    let close = find(bytes, b">", start)
+        .ok_or_else(|| ReadErrorKind::Truncated("unterminated <AppendedData> tag".into()))?;
+    let tag = bytes.get(start + 1..close).unwrap_or_default();
+    let tag = tag.strip_suffix(b"/").unwrap_or(tag);
+    let encoding = attrs(&BytesStart::from_content(
+        String::from_utf8_lossy(tag),
+        "AppendedData".len(),
+    ))
+    .map_err(|m| ReadErrorKind::Xml(format!("<AppendedData>: {m}")))?
+    .get("encoding")
+    .cloned()
+    .unwrap_or_else(|| "raw".into());
+    let base64 = match encoding.as_str() {
+        "raw" => false,
+        "base64" => true,
+        o => {
+            return Err(ReadErrorKind::Format(format!(
+                "unknown <AppendedData> encoding '{o}' (VTK writes 'raw' or 'base64')"
+            )))
+        }
+    };
+    let rest = bytes.get(close + 1..).unwrap_or_default();
+    let lead = rest.iter().take_while(|c| c.is_ascii_whitespace()).count();
+    if rest.get(lead) != Some(&b'_') {
+        return Err(ReadErrorKind::Truncated(
+            "appended data does not start with the '_' marker".into(),
+        ));
+    }
+    let data = rest.get(lead + 1..).unwrap_or_default();
+    let body = trim_end(data);
+    let tail_ok = body
+        .strip_suffix(b"</VTKFile>")
+        .map(trim_end)
+        .is_some_and(|b| b.ends_with(b"</AppendedData>"));
+    if !tail_ok {
+        return Err(ReadErrorKind::Truncated(
+            "the file does not end with </AppendedData></VTKFile> (cut short, or garbage \
+             after the end)"
+                .into(),
+        ));
+    }
+    Ok((bytes.get(..start).unwrap_or_default(), Some(Appended { data, base64 })))
+}
+
+fn trim_end(b: &[u8]) -> &[u8] {
+    let n = b.iter().rev().take_while(|c| c.is_ascii_whitespace()).count();
+    b.get(..b.len() - n).unwrap_or_default()
+}
+
+/// What the XML head declares.
+struct Head {
+    file_attrs: HashMap<String, String>,
+    kind: DatasetKind,
+    pieces: Vec<Piece>,
+    decls: Vec<ArrayDecl>,
+}
+
+/// Walks the XML head and collects the pieces and array declarations.
+struct HeadParser {
+    file_attrs: Option<HashMap<String, String>>,
+    kind: Option<DatasetKind>,
+    section: Section,
+    pieces: Vec<Piece>,
+    decls: Vec<ArrayDecl>,
+    open_array: Option<ArrayDecl>,
+    /// Depth of elements nested inside the open DataArray (VTK writes <InformationKey>s
+    /// there, whose text is not array data).
+    nested: usize,
+    /// Open elements, to tell a complete document from a truncated one.
+    depth: usize,
+    root_closed: bool,
+}
+
+impl HeadParser {
+    fn start(&mut self, e: &BytesStart, empty: bool, at: u64) -> Result<(), ReadErrorKind> {
+        check_tag(e, at).map_err(ReadErrorKind::Xml)?;
+        if self.root_closed {
+            return Err(ReadErrorKind::Format(format!(
+                "content after </VTKFile> near byte {at}"
+            )));
+        }
+        self.depth += usize::from(!empty);
+        if self.open_array.is_some() {
+            self.nested += usize::from(!empty);
+            return Ok(());
+        }
+        let a = attrs(e).map_err(ReadErrorKind::Xml)?;
+        match e.name().as_ref() {
+            b"VTKFile" => self.file_attrs = Some(a),
+            b"UnstructuredGrid" => self.kind = Some(DatasetKind::UnstructuredGrid),
+            b"PolyData" => self.kind = Some(DatasetKind::PolyData),
+            b"Piece" => self.pieces.push(Piece {
+                num_points: parse_count(&a, "NumberOfPoints")?,
+                ..Default::default()
+            }),
+            b"Points" if !empty => self.section = Section::Points,
+            b"PointData" if !empty => self.section = Section::PointData,
+            b"FieldData" if !empty => self.section = Section::FieldData,
+            b"CellData" | b"Cells" | b"Verts" | b"Lines" | b"Strips" | b"Polys" if !empty => {
+                self.section = Section::Other
+            }
+            b"DataArray" | b"Array" => {
+                let decl = ArrayDecl {
+                    attrs: a,
+                    text: Vec::new(),
+                    section: self.section,
+                    piece: self.pieces.len().saturating_sub(1),
+                };
+                if empty {
+                    self.decls.push(decl);
+                } else {
+                    self.open_array = Some(decl);
+                }
+            }
+            b"ImageData" | b"RectilinearGrid" | b"StructuredGrid" => {
+                return Err(ReadErrorKind::Format(format!(
+                    "{} files are not particle data (expected UnstructuredGrid or PolyData)",
+                    String::from_utf8_lossy(e.name().as_ref())
+                )))
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn end(&mut self, name: &[u8]) {
+        self.depth = self.depth.saturating_sub(1);
+        if self.nested > 0 {
+            self.nested -= 1;
+            return;
+        }
+        match name {
+            b"DataArray" | b"Array" => {
+                if let Some(d) = self.open_array.take() {
+                    self.decls.push(d);
+                }
+            }
+            b"Points" | b"PointData" | b"FieldData" | b"CellData" | b"Cells" | b"Verts"
+            | b"Lines" | b"Strips" | b"Polys" => self.section = Section::None,
+            b"VTKFile" => self.root_closed = true,
+            _ => {}
+        }
+    }
+
+    fn text(&mut self, t: &[u8], cdata: bool, at: u64) -> Result<(), ReadErrorKind> {
+        if self.root_closed {
+            return Err(ReadErrorKind::Format(format!(
+                "content after </VTKFile> near byte {at}"
+            )));
+        }
+        if self.nested > 0 {
+            return Ok(());
+        }
+        if let Some(d) = self.open_array.as_mut() {
+            if !cdata {
+                d.text.push(b' ');
+            }
+            d.text.extend_from_slice(t);
+        }
+        Ok(())
+    }
+}
+
+/// Parses the XML head; `appended` says whether the file continues with appended data
+/// (then `<VTKFile>` is still open where the head ends).
+fn parse_head(head: &[u8], appended: bool) -> Result<Head, ReadErrorKind> {
     let mut reader = quick_xml::Reader::from_reader(head);
     reader.config_mut().trim_text(true);
-    let mut file_attrs: Option<HashMap<String, String>> = None;
-    let mut kind = None;
-    let mut section = Section::None;
-    let mut pieces: Vec<Piece> = Vec::new();
-    let mut decls: Vec<ArrayDecl> = Vec::new();
-    let mut open_array: Option<ArrayDecl> = None;
-    // Depth of elements nested inside the open DataArray (VTK writes <InformationKey>s there,
-    // whose text is not array data).
-    let mut nested = 0usize;
-    let mut field_counts: Vec<Option<usize>> = Vec::new();
+    let mut p = HeadParser {
+        file_attrs: None,
+        kind: None,
+        section: Section::None,
+        pieces: Vec::new(),
+        decls: Vec::new(),
+        open_array: None,
+        nested: 0,
+        depth: 0,
+        root_closed: false,
+    };
     loop {
-        let ev = reader.read_event().map_err(|e| {
-            err(ReadErrorKind::Xml(format!(
-                "{e} (at byte {})",
-                reader.buffer_position()
-            )))
-        })?;
+        let at = reader.buffer_position();
+        let ev = reader
+            .read_event()
+            .map_err(|e| ReadErrorKind::Xml(format!("{e} (near byte {at})")))?;
         match ev {
-            Event::Start(ref e) | Event::Empty(ref e) => {
-                let empty = matches!(ev, Event::Empty(_));
-                if open_array.is_some() {
-                    nested += usize::from(!empty);
-                    continue;
-                }
-                let a = attrs(e).map_err(|m| err(ReadErrorKind::Xml(m)))?;
-                match e.name().as_ref() {
-                    b"VTKFile" => file_attrs = Some(a),
-                    b"UnstructuredGrid" => kind = Some(DatasetKind::UnstructuredGrid),
-                    b"PolyData" => kind = Some(DatasetKind::PolyData),
-                    b"Piece" => {
-                        let n = parse_count(&a, "NumberOfPoints").map_err(&err)?;
-                        pieces.push(Piece {
-                            num_points: n,
-                            ..Default::default()
-                        });
-                    }
-                    b"Points" if !empty => section = Section::Points,
-                    b"PointData" if !empty => section = Section::PointData,
-                    b"FieldData" if !empty => section = Section::FieldData,
-                    b"CellData" | b"Cells" | b"Verts" | b"Lines" | b"Strips" | b"Polys" if !empty => {
-                        section = Section::Other
-                    }
-                    b"DataArray" | b"Array" => {
-                        let decl = ArrayDecl {
-                            attrs: a,
-                            text: Vec::new(),
-                            section,
-                            piece: pieces.len().saturating_sub(1),
-                        };
-                        if empty {
-                            decls.push(decl);
-                        } else {
-                            open_array = Some(decl);
-                        }
-                    }
-                    b"ImageData" | b"RectilinearGrid" | b"StructuredGrid" => {
-                        return Err(err(ReadErrorKind::Format(format!(
-                            "{} files are not particle data (expected UnstructuredGrid or PolyData)",
-                            String::from_utf8_lossy(e.name().as_ref())
-                        ))))
-                    }
-                    _ => {}
-                }
-            }
-            Event::Text(t) if nested == 0 => {
-                if let Some(d) = open_array.as_mut() {
-                    d.text.push(b' ');
-                    d.text.extend_from_slice(t.as_ref());
-                }
-            }
-            Event::CData(t) if nested == 0 => {
-                if let Some(d) = open_array.as_mut() {
-                    d.text.extend_from_slice(t.as_ref());
-                }
-            }
-            Event::End(_) if nested > 0 => nested -= 1,
-            Event::End(e) => match e.name().as_ref() {
-                b"DataArray" | b"Array" => {
-                    if let Some(d) = open_array.take() {
-                        decls.push(d);
-                    }
-                }
-                b"Points" | b"PointData" | b"FieldData" | b"CellData" | b"Cells" | b"Verts"
-                | b"Lines" | b"Strips" | b"Polys" => section = Section::None,
-                _ => {}
-            },
+            Event::Start(ref e) => p.start(e, false, at)?,
+            Event::Empty(ref e) => p.start(e, true, at)?,
+            Event::Text(t) => p.text(t.as_ref(), false, at)?,
+            Event::CData(t) => p.text(t.as_ref(), true, at)?,
+            Event::End(e) => p.end(e.name().as_ref()),
             Event::Eof => break,
             _ => {}
         }
     }
-    let fa = file_attrs.ok_or_else(|| {
-        err(ReadErrorKind::Format(
-            "not a VTK XML file (no <VTKFile> element)".into(),
+    let fa = p.file_attrs.ok_or_else(|| {
+        ReadErrorKind::Format("not a VTK XML file (no <VTKFile> element)".into())
+    })?;
+    let complete = if appended {
+        p.depth == 1 && !p.root_closed
+    } else {
+        p.root_closed
+    };
+    if !complete {
+        return Err(ReadErrorKind::Truncated(format!(
+            "the XML ends with {} element(s) still open (expected the file to end with \
+             </VTKFile>)",
+            p.depth
+        )));
+    }
+    let kind = p.kind.ok_or_else(|| {
+        ReadErrorKind::Format(format!(
+            "no <UnstructuredGrid> or <PolyData> element (VTKFile type is '{}'; only those \
+             two hold particles)",
+            fa.get("type").map(String::as_str).unwrap_or("?")
         ))
     })?;
-    let kind = kind.ok_or_else(|| {
-        err(ReadErrorKind::Format(format!(
-            "VTKFile type '{}' is not supported (expected UnstructuredGrid or PolyData)",
-            fa.get("type").map(String::as_str).unwrap_or("?")
-        )))
-    })?;
-    if pieces.is_empty() {
-        return Err(err(ReadErrorKind::Format("no <Piece> element".into())));
+    if p.pieces.is_empty() {
+        return Err(ReadErrorKind::Format("no <Piece> element".into()));
     }
-    let big_endian = fa
-        .get("byte_order")
-        .map(|s| s == "BigEndian")
-        .unwrap_or(false);
+    Ok(Head {
+        file_attrs: fa,
+        kind,
+        pieces: p.pieces,
+        decls: p.decls,
+    })
+}
+
+/// The binary layout declared by the `<VTKFile>` attributes, strictly checked.
+fn file_ctx(fa: &HashMap<String, String>) -> Result<Ctx, ReadErrorKind> {
+    let big_endian = match fa.get("byte_order").map(String::as_str) {
+        None | Some("LittleEndian") => false,
+        Some("BigEndian") => true,
+        Some(o) => {
+            return Err(ReadErrorKind::Format(format!(
+                "unknown byte_order '{o}' (expected LittleEndian or BigEndian)"
+            )))
+        }
+    };
     let header = match fa.get("header_type").map(String::as_str) {
         None | Some("UInt32") => ScalarType::U32,
         Some("UInt64") => ScalarType::U64,
         Some(o) => {
-            return Err(err(ReadErrorKind::Format(format!(
-                "unsupported header_type '{o}'"
-            ))))
+            return Err(ReadErrorKind::Format(format!(
+                "unsupported header_type '{o}' (expected UInt32 or UInt64)"
+            )))
         }
     };
     let compressor = match fa.get("compressor").map(String::as_str) {
@@ -251,148 +337,194 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         Some("vtkLZ4DataCompressor") => Some(Compressor::Lz4),
         Some("vtkLZMADataCompressor") => Some(Compressor::Lzma),
         Some(o) => {
-            return Err(err(ReadErrorKind::Format(format!(
+            return Err(ReadErrorKind::Format(format!(
                 "unsupported compressor '{o}'"
-            ))))
+            )))
         }
     };
-    let ctx = Ctx {
+    Ok(Ctx {
         big_endian,
         header,
         compressor,
-    };
+    })
+}
 
+/// Parses a `.vtu` or `.vtp` file's bytes.
+pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
+    let err = |k: ReadErrorKind| ReadError::new(path, k);
+    let (head, appended) = split_appended(bytes).map_err(err)?;
+    let h = parse_head(head, appended.is_some()).map_err(err)?;
+    let ctx = file_ctx(&h.file_attrs).map_err(err)?;
+    let mut pieces = h.pieces;
     let mut field_data = Vec::new();
-    for d in decls {
+    for d in h.decls {
         if matches!(d.section, Section::Other | Section::None) {
             continue; // cells and cell data do not matter for particles
         }
-        let name = d.attrs.get("Name").cloned().unwrap_or_default();
-        let type_name = d.attrs.get("type").map(String::as_str).unwrap_or("");
-        if type_name == "String" {
-            continue; // string arrays (e.g. field-data labels) cannot be rendered
-        }
-        let aerr = |problem: String| {
-            err(ReadErrorKind::Array {
-                array: if name.is_empty() {
-                    "(unnamed)".into()
-                } else {
-                    name.clone()
-                },
-                problem,
-            })
-        };
-        let st = ScalarType::from_vtk_name(type_name)
-            .ok_or_else(|| aerr(format!("unknown type '{type_name}'")))?;
-        let nc: usize = match d.attrs.get("NumberOfComponents") {
-            Some(s) => s
-                .trim()
-                .parse()
-                .map_err(|_| aerr(format!("bad NumberOfComponents '{s}'")))?,
-            None => 1,
-        };
-        if nc == 0 {
-            return Err(aerr("NumberOfComponents is 0".into()));
-        }
         let expected_tuples = match d.section {
-            Section::Points | Section::PointData => Some(pieces[d.piece].num_points),
-            _ => match d.attrs.get("NumberOfTuples") {
-                Some(s) => Some(
-                    s.trim()
-                        .parse()
-                        .map_err(|_| aerr(format!("bad NumberOfTuples '{s}'")))?,
-                ),
-                None => None,
-            },
+            Section::Points | Section::PointData => pieces.get(d.piece).map(|p| p.num_points),
+            _ => None,
         };
-        let format = d.attrs.get("format").map(String::as_str).unwrap_or("ascii");
-        let values = match format {
-            "ascii" => parse_ascii(&d.text, st).map_err(&aerr)?,
-            "binary" => {
-                let text: Vec<u8> = d
-                    .text
-                    .iter()
-                    .copied()
-                    .filter(|c| !c.is_ascii_whitespace())
-                    .collect();
-                st.decode(
-                    &decode_base64_payload(&text, ctx).map_err(&aerr)?,
-                    big_endian,
-                )
-            }
-            "appended" => {
-                let app = appended.ok_or_else(|| {
-                    aerr("format is 'appended' but the file has no <AppendedData>".into())
-                })?;
-                let off: usize = d
-                    .attrs
-                    .get("offset")
-                    .and_then(|s| s.trim().parse().ok())
-                    .ok_or_else(|| aerr("appended array without a valid offset".into()))?;
-                let src = app.get(off..).ok_or_else(|| {
-                    aerr(format!(
-                        "offset {off} is beyond the end of the appended data (file truncated?)"
-                    ))
-                })?;
-                let raw = if appended_b64 {
-                    decode_base64_payload(src, ctx)
-                } else {
-                    decode_raw_payload(src, ctx)
-                }
-                .map_err(&aerr)?;
-                st.decode(&raw, big_endian)
-            }
-            o => return Err(aerr(format!("unknown format '{o}'"))),
+        let Some(arr) = read_array(&d, expected_tuples, ctx, appended.as_ref()).map_err(err)?
+        else {
+            continue;
         };
-        let arr = DataArray {
-            name: name.clone(),
-            scalar_type: st,
-            num_components: nc,
-            values,
+        let Some(piece) = pieces.get_mut(d.piece) else {
+            continue;
         };
-        if let Some(nt) = expected_tuples {
-            if arr.values.len() != nt * nc {
-                return Err(aerr(format!(
-                    "expected {} tuples x {} components = {} values, found {}",
-                    nt,
-                    nc,
-                    nt * nc,
-                    arr.values.len()
-                )));
-            }
-        }
         match d.section {
-            Section::Points => {
-                if nc != 3 {
-                    return Err(aerr(format!("points need 3 components, found {nc}")));
-                }
-                pieces[d.piece].points = Some(arr);
-            }
-            Section::PointData => pieces[d.piece].point_data.push(arr),
-            Section::FieldData => {
-                field_counts.push(expected_tuples);
-                field_data.push(arr)
-            }
+            Section::Points => piece.points = Some(arr),
+            Section::PointData => piece.point_data.push(arr),
+            Section::FieldData => field_data.push(arr),
             _ => {}
         }
     }
+    let (points, point_data) = concat_pieces(pieces).map_err(err)?;
+    Ok(Dataset {
+        path: path.to_path_buf(),
+        kind: h.kind,
+        points,
+        point_data,
+        field_data,
+    })
+}
 
-    // Concatenate pieces; keep point arrays present (same name, components) in every piece.
+/// Reads one declared array; `None` for arrays that cannot be rendered (strings).
+fn read_array(
+    d: &ArrayDecl,
+    expected_tuples: Option<usize>,
+    ctx: Ctx,
+    appended: Option<&Appended>,
+) -> Result<Option<DataArray>, ReadErrorKind> {
+    let name = d.attrs.get("Name").cloned().unwrap_or_default();
+    let type_name = d.attrs.get("type").map(String::as_str).unwrap_or("");
+    if type_name == "String" {
+        return Ok(None); // string arrays (e.g. field-data labels) cannot be rendered
+    }
+    let aerr = |problem: String| ReadErrorKind::Array {
+        array: if name.is_empty() {
+            "(unnamed)".into()
+        } else {
+            name.clone()
+        },
+        problem,
+    };
+    let st = ScalarType::from_vtk_name(type_name)
+        .ok_or_else(|| aerr(format!("unknown type '{type_name}'")))?;
+    let nc = match d.attrs.get("NumberOfComponents") {
+        Some(s) => s
+            .trim()
+            .parse::<usize>()
+            .map_err(|_| aerr(format!("bad NumberOfComponents '{s}'")))?,
+        None => 1,
+    };
+    if nc == 0 {
+        return Err(aerr("NumberOfComponents is 0".into()));
+    }
+    if d.section == Section::Points && nc != 3 {
+        return Err(aerr(format!("points need 3 components, found {nc}")));
+    }
+    let expected_tuples = match (expected_tuples, d.attrs.get("NumberOfTuples")) {
+        (Some(n), _) => Some(n),
+        (None, Some(s)) => Some(
+            s.trim()
+                .parse::<usize>()
+                .map_err(|_| aerr(format!("bad NumberOfTuples '{s}'")))?,
+        ),
+        (None, None) => None,
+    };
+    let expected_values = expected_tuples
+        .map(|t| {
+            t.checked_mul(nc)
+                .ok_or_else(|| aerr(format!("{t} tuples × {nc} components overflow")))
+        })
+        .transpose()?;
+    let expected_bytes = expected_values.and_then(|v| v.checked_mul(st.size()));
+    let values = decode_values(d, st, ctx, appended, expected_bytes).map_err(&aerr)?;
+    if let Some(ev) = expected_values {
+        if values.len() != ev {
+            return Err(aerr(format!(
+                "expected {} tuples x {nc} components = {ev} values, found {}",
+                expected_tuples.unwrap_or_default(),
+                values.len()
+            )));
+        }
+    }
+    if !values.len().is_multiple_of(nc) {
+        return Err(aerr(format!(
+            "{} values do not make whole tuples of {nc} components",
+            values.len()
+        )));
+    }
+    Ok(Some(DataArray {
+        name,
+        scalar_type: st,
+        num_components: nc,
+        values,
+    }))
+}
+
+/// The array's values, from whichever encoding its `format` names.
+fn decode_values(
+    d: &ArrayDecl,
+    st: ScalarType,
+    ctx: Ctx,
+    appended: Option<&Appended>,
+    expected_bytes: Option<usize>,
+) -> Result<Vec<f64>, String> {
+    let format = d.attrs.get("format").map(String::as_str).unwrap_or("ascii");
+    let raw = match format {
+        "ascii" => return parse_ascii(&d.text, st),
+        "binary" => {
+            let text: Vec<u8> = d
+                .text
+                .iter()
+                .copied()
+                .filter(|c| !c.is_ascii_whitespace())
+                .collect();
+            decode_base64(&text, ctx, expected_bytes)?
+        }
+        "appended" => {
+            let app = appended
+                .ok_or("format is 'appended' but the file has no <AppendedData>")?;
+            let off: usize = d
+                .attrs
+                .get("offset")
+                .and_then(|s| s.trim().parse().ok())
+                .ok_or("appended array without a valid offset")?;
+            let src = app.data.get(off..).ok_or_else(|| {
+                format!("offset {off} is beyond the end of the appended data (file truncated?)")
+            })?;
+            if app.base64 {
+                decode_base64(src, ctx, expected_bytes)?
+            } else {
+                decode_raw(src, ctx, expected_bytes)?
+            }
+        }
+        o => return Err(format!("unknown format '{o}' (expected ascii, binary or appended)")),
+    };
+    st.decode(&raw, ctx.big_endian)
+}
+
+/// Concatenates pieces; keeps the point arrays present (same name, components) in every
+/// piece.
+fn concat_pieces(pieces: Vec<Piece>) -> Result<(Vec<[f64; 3]>, Vec<DataArray>), ReadErrorKind> {
     let mut points = Vec::new();
     for (i, p) in pieces.iter().enumerate() {
         match &p.points {
             Some(a) => points.extend(a.values.chunks_exact(3).map(|c| [c[0], c[1], c[2]])),
             None if p.num_points == 0 => {}
             None => {
-                return Err(err(ReadErrorKind::Format(format!(
+                return Err(ReadErrorKind::Format(format!(
                     "piece {i} has {} points but no <Points> array",
                     p.num_points
-                ))))
+                )))
             }
         }
     }
-    let mut point_data: Vec<DataArray> = pieces[0].point_data.clone();
-    for p in &pieces[1..] {
+    let mut it = pieces.into_iter();
+    let mut point_data = it.next().map(|p| p.point_data).unwrap_or_default();
+    for p in it {
         point_data.retain_mut(|a| {
             match p
                 .point_data
@@ -407,13 +539,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
             }
         });
     }
-    Ok(Dataset {
-        path: path.to_path_buf(),
-        kind,
-        points,
-        point_data,
-        field_data,
-    })
+    Ok((points, point_data))
 }
 
 fn parse_count(a: &HashMap<String, String>, key: &str) -> Result<usize, ReadErrorKind> {
@@ -426,182 +552,40 @@ fn parse_count(a: &HashMap<String, String>, key: &str) -> Result<usize, ReadErro
     }
 }
 
+/// Parses one ASCII token as a value of type `st`, refusing values outside its range.
+pub(crate) fn parse_token(tok: &str, st: ScalarType) -> Result<f64, String> {
+    let bad = || format!("cannot parse '{tok}' as {}", st.vtk_name());
+    match st {
+        ScalarType::F32 | ScalarType::F64 => {
+            // Float32 arrays hold f32 values: round exactly as VTK's reader does.
+            let v = if st == ScalarType::F32 {
+                tok.parse::<f32>().map(f64::from).map_err(|_| bad())?
+            } else {
+                tok.parse::<f64>().map_err(|_| bad())?
+            };
+            let literal_inf = tok.trim_start_matches(['+', '-']).to_ascii_lowercase();
+            if v.is_infinite() && !literal_inf.starts_with("inf") {
+                return Err(format!("'{tok}' is out of range for {}", st.vtk_name()));
+            }
+            Ok(v)
+        }
+        _ => {
+            let i = tok.parse::<i128>().map_err(|_| bad())?;
+            let (lo, hi) = st.int_range();
+            if i < lo || i > hi {
+                return Err(format!(
+                    "{tok} is out of range for {} ({lo}..={hi})",
+                    st.vtk_name()
+                ));
+            }
+            Ok(i as f64)
+        }
+    }
+}
+
 fn parse_ascii(text: &[u8], st: ScalarType) -> Result<Vec<f64>, String> {
     let s = std::str::from_utf8(text).map_err(|_| "ascii data is not valid text".to_string())?;
-    let float = matches!(st, ScalarType::F32 | ScalarType::F64);
     s.split_ascii_whitespace()
-        .map(|tok| {
-            let v = if st == ScalarType::F32 {
-                // Float32 arrays hold f32 values: round exactly as VTK's reader does.
-                tok.parse::<f32>().ok().map(f64::from)
-            } else if float {
-                tok.parse::<f64>().ok()
-            } else {
-                tok.parse::<i128>().ok().map(|i| i as f64)
-            };
-            v.ok_or_else(|| format!("cannot parse '{tok}' as {}", st.vtk_name()))
-        })
+        .map(|tok| parse_token(tok, st))
         .collect()
-}
-
-fn decompress(c: Compressor, data: &[u8], size: usize) -> Result<Vec<u8>, String> {
-    let out = match c {
-        Compressor::Zlib => {
-            let mut out = Vec::with_capacity(size);
-            flate2::read::ZlibDecoder::new(data)
-                .read_to_end(&mut out)
-                .map_err(|e| format!("zlib block: {e}"))?;
-            out
-        }
-        Compressor::Lz4 => {
-            lz4_flex::block::decompress(data, size).map_err(|e| format!("lz4 block: {e}"))?
-        }
-        Compressor::Lzma => {
-            let mut out = Vec::with_capacity(size);
-            lzma_rs::xz_decompress(&mut std::io::Cursor::new(data), &mut out)
-                .map_err(|e| format!("lzma block: {e}"))?;
-            out
-        }
-    };
-    if out.len() != size {
-        return Err(format!(
-            "a compressed block gave {} bytes, its header says {size}",
-            out.len()
-        ));
-    }
-    Ok(out)
-}
-
-struct BlockHeader {
-    block_size: usize,
-    last_size: usize,
-    compressed: Vec<usize>,
-}
-
-impl BlockHeader {
-    fn parse(b: &[u8], ctx: Ctx) -> Result<BlockHeader, String> {
-        let short = || "compression header is truncated".to_string();
-        let nb = ctx.word(b, 0).ok_or_else(short)? as usize;
-        if nb > b.len() {
-            return Err(format!(
-                "compression header claims {nb} blocks, more than the file holds"
-            ));
-        }
-        let block_size = ctx.word(b, 1).ok_or_else(short)? as usize;
-        let last = ctx.word(b, 2).ok_or_else(short)? as usize;
-        let compressed = (0..nb)
-            .map(|i| ctx.word(b, 3 + i).map(|w| w as usize).ok_or_else(short))
-            .collect::<Result<Vec<_>, _>>()?;
-        Ok(BlockHeader {
-            block_size,
-            last_size: if last == 0 { block_size } else { last },
-            compressed,
-        })
-    }
-    fn len(&self, ctx: Ctx) -> usize {
-        (3 + self.compressed.len()) * ctx.hb()
-    }
-    fn total_compressed(&self) -> usize {
-        self.compressed.iter().sum()
-    }
-    fn inflate(&self, data: &[u8], c: Compressor) -> Result<Vec<u8>, String> {
-        let nb = self.compressed.len();
-        let mut out = Vec::with_capacity(nb * self.block_size);
-        let mut pos = 0usize;
-        for (i, &cs) in self.compressed.iter().enumerate() {
-            let blk = data.get(pos..pos + cs).ok_or_else(|| {
-                format!(
-                    "compressed block {i} of {nb} runs past the end of the data (file truncated?)"
-                )
-            })?;
-            let size = if i + 1 == nb {
-                self.last_size
-            } else {
-                self.block_size
-            };
-            out.extend(decompress(c, blk, size)?);
-            pos += cs;
-        }
-        Ok(out)
-    }
-}
-
-/// Decodes one raw binary payload (header + data) starting at `src`.
-fn decode_raw_payload(src: &[u8], ctx: Ctx) -> Result<Vec<u8>, String> {
-    match ctx.compressor {
-        None => {
-            let n = ctx.word(src, 0).ok_or("data header is truncated")? as usize;
-            let hb = ctx.hb();
-            src.get(hb..hb.saturating_add(n))
-                .map(<[u8]>::to_vec)
-                .ok_or_else(|| {
-                    format!("header says {n} bytes but the file ends first (file truncated?)")
-                })
-        }
-        Some(c) => {
-            let h = BlockHeader::parse(src, ctx)?;
-            h.inflate(&src[h.len(ctx).min(src.len())..], c)
-        }
-    }
-}
-
-fn b64(text: &[u8]) -> Result<Vec<u8>, String> {
-    base64::engine::general_purpose::STANDARD
-        .decode(text)
-        .map_err(|e| format!("invalid base64: {e}"))
-}
-
-fn b64_chars(nbytes: usize) -> usize {
-    nbytes.div_ceil(3) * 4
-}
-
-fn b64_slice(text: &[u8], from: usize, len: usize) -> Result<&[u8], String> {
-    text.get(from..from + len)
-        .ok_or_else(|| "base64 data ends early (file truncated?)".to_string())
-}
-
-/// Decodes a base64 payload (header + data). VTK encodes header and data either as one
-/// base64 stream or as two separately padded ones (VTK's compressed arrays, pyvisfile's
-/// version 0.1 files); the two differ only where the header's last quantum holds padding.
-fn decode_base64_payload(text: &[u8], ctx: Ctx) -> Result<Vec<u8>, String> {
-    let hb = ctx.hb();
-    match ctx.compressor {
-        None => {
-            let hc = b64_chars(hb);
-            let head = b64(b64_slice(text, 0, hc)?)?;
-            let n = ctx.word(&head, 0).ok_or("data header is truncated")? as usize;
-            let separate = !hb.is_multiple_of(3) && text.get(hc - 1) == Some(&b'=');
-            if separate {
-                b64(b64_slice(text, hc, b64_chars(n))?)
-            } else {
-                let all = b64(b64_slice(text, 0, b64_chars(hb + n))?)?;
-                Ok(all[hb..hb + n].to_vec())
-            }
-        }
-        Some(c) => {
-            // The first three words take exactly 4*hb characters (3*hb bytes, no padding).
-            let first = b64(b64_slice(text, 0, 4 * hb)?)?;
-            let nb = ctx
-                .word(&first, 0)
-                .ok_or("compression header is truncated")? as usize;
-            let hlen = (3 + nb) * hb;
-            let hc = b64_chars(hlen);
-            if hc > text.len() {
-                return Err(
-                    "compression header runs past the end of the data (file truncated?)".into(),
-                );
-            }
-            let separate = hlen.is_multiple_of(3) || text.get(hc - 1) == Some(&b'=');
-            let header_bytes = b64(b64_slice(text, 0, hc)?)?;
-            let h = BlockHeader::parse(&header_bytes, ctx)?;
-            let total = h.total_compressed();
-            let data = if separate {
-                b64(b64_slice(text, hc, b64_chars(total))?)?
-            } else {
-                let all = b64(b64_slice(text, 0, b64_chars(hlen + total))?)?;
-                all[hlen..].to_vec()
-            };
-            h.inflate(&data, c)
-        }
-    }
 }
