@@ -150,61 +150,119 @@ impl Image {
     /// (8-bit or 16-bit; values taken as stored, in 0..1, with no transfer curve undone —
     /// the convention of [`PngEncoding::Vtk`]; opaque when it has no alpha).
     pub fn read(path: &Path) -> Result<Image, ImageError> {
+        let kind = ext(path);
+        if !matches!(kind.as_str(), "exr" | "png") {
+            return Err(ImageError::Format(path.to_path_buf()));
+        }
+        let meta = std::fs::metadata(path).map_err(|e| ferr(path, e))?;
+        fluidcast_mem::check(|| format!("reading {}", path.display()), meta.len())
+            .map_err(|e| ferr(path, e))?;
+        let bytes = std::fs::read(path).map_err(|e| ferr(path, e))?;
+        Image::decode(&bytes, path)
+    }
+
+    /// Decodes an EXR or PNG from its bytes; `path` names it in errors and its extension
+    /// chooses the format. Sizes in the header are checked against what the bytes can hold
+    /// and against the memory budget before any pixel buffer is allocated.
+    pub fn decode(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
         match ext(path).as_str() {
-            "exr" => {
-                let img = exr::prelude::read_all_flat_layers_from_file(path)
-                    .map_err(|e| ferr(path, e))?;
-                let layer = img
-                    .layer_data
-                    .first()
-                    .ok_or_else(|| ferr(path, "no layers"))?;
-                let (w, h) = (layer.size.0 as u32, layer.size.1 as u32);
-                let mut out = Image::new(w, h);
-                for c in &layer.channel_data.list {
-                    let name = c.name.to_string();
-                    let vals: Vec<f32> = c.sample_data.values_as_f32().collect();
-                    match name.as_str() {
-                        "R" | "G" | "B" | "A" => {
-                            let k = "RGBA".find(&name).unwrap();
-                            for (p, v) in out.rgba.iter_mut().zip(vals) {
-                                p[k] = v;
-                            }
-                        }
-                        "Z" => out.depth = vals,
-                        _ => out.aovs.push((name, vals)),
-                    }
-                }
-                Ok(out)
-            }
-            "png" => {
-                let f = std::fs::File::open(path).map_err(|e| ferr(path, e))?;
-                let mut dec = png::Decoder::new(std::io::BufReader::new(f));
-                dec.set_transformations(
-                    png::Transformations::EXPAND | png::Transformations::STRIP_16,
-                );
-                let mut r = dec.read_info().map_err(|e| ferr(path, e))?;
-                let mut buf = vec![0; r.output_buffer_size()];
-                let info = r.next_frame(&mut buf).map_err(|e| ferr(path, e))?;
-                let nc = info.color_type.samples();
-                let mut out = Image::new(info.width, info.height);
-                for (p, px) in out
-                    .rgba
-                    .iter_mut()
-                    .zip(buf[..info.buffer_size()].chunks_exact(nc))
-                {
-                    let g = |k: usize| px[k] as f32 / 255.0;
-                    *p = match nc {
-                        1 => [g(0), g(0), g(0), 1.0],
-                        2 => [g(0), g(0), g(0), px[1] as f32 / 255.0],
-                        3 => [g(0), g(1), g(2), 1.0],
-                        _ => [g(0), g(1), g(2), px[3] as f32 / 255.0],
-                    };
-                }
-                Ok(out)
-            }
+            "exr" => decode_exr(bytes, path),
+            "png" => decode_png(bytes, path),
             _ => Err(ImageError::Format(path.to_path_buf())),
         }
     }
+}
+
+/// The largest expansion of any lossless compression PNG or EXR use (deflate's is 1032:1;
+/// EXR's RLE 64:1): a header claiming more pixel bytes than this times the file is lying.
+const MAX_COMPRESSION_RATIO: u64 = 1100;
+
+/// Refuses a decoded size the file cannot hold or the machine cannot give.
+fn check_claimed_size(path: &Path, file_len: usize, w: u64, h: u64, decoded: u64) -> Result<(), ImageError> {
+    let bound = (file_len as u64).saturating_mul(MAX_COMPRESSION_RATIO);
+    if decoded > bound {
+        return Err(ferr(
+            path,
+            format!(
+                "the header claims {w}x{h} pixels ({decoded} bytes decoded), more than a file of \
+                 {file_len} bytes can hold (damaged or forged header)"
+            ),
+        ));
+    }
+    // The decoded buffer plus the RGBA f32 image and depth (20 bytes per pixel).
+    let total = decoded.saturating_add(w.saturating_mul(h).saturating_mul(20));
+    fluidcast_mem::check(|| format!("a {w}x{h} image"), total).map_err(|e| ferr(path, e))
+}
+
+fn decode_png(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
+    let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));
+    dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
+    let mut r = dec.read_info().map_err(|e| ferr(path, e))?;
+    let (w, h) = r.info().size();
+    check_claimed_size(path, bytes.len(), w.into(), h.into(), r.output_buffer_size() as u64)?;
+    let mut buf = vec![0; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).map_err(|e| ferr(path, e))?;
+    let nc = info.color_type.samples();
+    let mut out = Image::new(info.width, info.height);
+    let data = buf.get(..info.buffer_size()).unwrap_or_default();
+    for (p, px) in out.rgba.iter_mut().zip(data.chunks_exact(nc)) {
+        let g = |k: usize| f32::from(px.get(k).copied().unwrap_or(0)) / 255.0;
+        *p = match nc {
+            1 => [g(0), g(0), g(0), 1.0],
+            2 => [g(0), g(0), g(0), g(1)],
+            3 => [g(0), g(1), g(2), 1.0],
+            _ => [g(0), g(1), g(2), g(3)],
+        };
+    }
+    Ok(out)
+}
+
+fn decode_exr(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
+    use exr::prelude::ReadChannels as _;
+    use exr::prelude::ReadLayers as _;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| ferr(path, e))?;
+    for h in &meta.headers {
+        let (w, hh) = (h.layer_size.0 as u64, h.layer_size.1 as u64);
+        let decoded = w
+            .saturating_mul(hh)
+            .saturating_mul(h.channels.list.len() as u64)
+            .saturating_mul(4);
+        check_claimed_size(path, bytes.len(), w, hh, decoded)?;
+    }
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| ferr(path, e))?;
+    let layer = img
+        .layer_data
+        .first()
+        .ok_or_else(|| ferr(path, "no layers"))?;
+    let (w, h) = (layer.size.0, layer.size.1);
+    let (Ok(w), Ok(h)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(ferr(path, format!("image size {w}x{h} is too large")));
+    };
+    let mut out = Image::new(w, h);
+    for c in &layer.channel_data.list {
+        let name = c.name.to_string();
+        let vals: Vec<f32> = c.sample_data.values_as_f32().collect();
+        match "RGBA".find(name.as_str()).filter(|_| name.len() == 1) {
+            Some(k) => {
+                for (p, v) in out.rgba.iter_mut().zip(vals) {
+                    if let Some(slot) = p.get_mut(k) {
+                        *slot = v;
+                    }
+                }
+            }
+            None if name == "Z" => out.depth = vals,
+            None => out.aovs.push((name, vals)),
+        }
+    }
+    Ok(out)
 }
 
 fn ext(p: &Path) -> String {
