@@ -304,9 +304,11 @@ impl ValueBound {
         if self.empty {
             return Bound::EMPTY;
         }
-        // Opacity 1 − exp(−κ ds) grows with κ and ds.
-        let t_lo = (-self.k_hi * ds[1]).exp();
-        let t_hi = (-self.k_lo * ds[0]).exp();
+        // Opacity 1 − exp(−κ ds) grows with κ and ds. Far outliers can make a step
+        // infinitely long: no extinction over it still lets everything through, and a
+        // product that is not a number widens the bound to all it could be.
+        let t_lo = transmittance(self.k_hi, ds[1]).unwrap_or(0.0);
+        let t_hi = transmittance(self.k_lo, ds[0]).unwrap_or(1.0);
         let (a_lo, a_hi) = (1.0 - t_hi, 1.0 - t_lo);
         let e = self.may_be_empty;
         Bound {
@@ -324,6 +326,17 @@ impl ValueBound {
             ],
         }
     }
+}
+
+/// `exp(−κ ds)`, exactly 1 where κ or ds is 0 (also for an infinite other factor); `None`
+/// where the product is not a number.
+#[inline]
+fn transmittance(kappa: f64, ds: f64) -> Option<f64> {
+    if kappa == 0.0 || ds == 0.0 {
+        return Some(1.0);
+    }
+    let t = (-kappa * ds).exp();
+    (!t.is_nan()).then_some(t)
 }
 
 /// Sub-bundles per side for the coverage test (2×2 rays each for D_xy = 8).
@@ -512,7 +525,8 @@ fn plan_bundle(
             for ch in 0..4 {
                 // Sec. 5.1: lower bounds move up by E_relax × the level-0 width.
                 let lo0 = b0.hi[ch] - (1.0 - params.relax) * (b0.hi[ch] - b0.lo[ch]);
-                r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).clamp(0.0, r.hi[ch]);
+                // max/min, not clamp: a NaN (from degenerate depths) becomes 0, never a panic.
+                r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).max(0.0).min(r.hi[ch]);
             }
             relaxed[c][l] = r;
         }

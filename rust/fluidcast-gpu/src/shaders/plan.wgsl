@@ -117,8 +117,10 @@ fn vb_step(v: ValueBound, ds0: f32, ds1: f32) -> Bound {
     if (v.empty) {
         return bound_empty();
     }
-    let t_lo = exp(-v.k.y * ds1);
-    let t_hi = exp(-v.k.x * ds0);
+    // As on the CPU (fluidcast_plan::transmittance): no extinction over any step, even an
+    // infinitely long one from a far outlier, lets everything through.
+    let t_lo = select(exp(-v.k.y * ds1), 1.0, v.k.y == 0.0 || ds1 == 0.0);
+    let t_hi = select(exp(-v.k.x * ds0), 1.0, v.k.x == 0.0 || ds0 == 0.0);
     let a_lo = 1.0 - t_hi;
     let a_hi = 1.0 - t_lo;
     var lo = vec4<f32>(a_lo * v.rgb_lo, t_lo);
