@@ -23,6 +23,10 @@ use rayon::prelude::*;
 
 pub use depths::{within, SampleDepths, MAX_SAMPLES};
 
+/// Peak bytes per particle–cell pair while the grid is built (sort keys, references, the
+/// sorted cells).
+pub const PAIR_BYTES: u64 = 24;
+
 /// Why a grid could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum GridError {
@@ -34,6 +38,8 @@ pub enum GridError {
     BundleSize(u32),
     #[error("depth samples per cell {0} must be a power of two in 1..=64")]
     DepthSamples(u32),
+    #[error("{0}; use a smaller image or fewer, smaller particles in view")]
+    Memory(#[from] fluidcast_mem::MemError),
 }
 
 /// A particle in view space (world units), as the renderers read it.
@@ -458,6 +464,13 @@ impl PerspectiveGrid {
         for b in 0..nb {
             offsets[b + 1] += offsets[b];
         }
+        // Keys now, then references and the sorted copy: refused before allocating when the
+        // view's particle–cell pairs would not fit.
+        let pairs = offsets[nb] as u64;
+        fluidcast_mem::check(
+            || format!("the perspective grid's {pairs} particle–cell pairs at {}x{}", frame.width, frame.height),
+            pairs.saturating_mul(PAIR_BYTES),
+        )?;
         let mut keys = vec![0u64; offsets[nb]];
         let mut fill = offsets.clone();
         for (j, f) in feet.iter().enumerate() {

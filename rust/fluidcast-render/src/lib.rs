@@ -39,6 +39,10 @@ use fluidcast_view::CameraError;
 pub const MAX_SIDE: u32 = 16384;
 const MAX_PIXELS: u64 = 1 << 27;
 
+/// Bytes per pixel the renderers hold whatever the data: the RGBA and depth image, its
+/// three plan AOVs, per-pixel depth limits and per-ray state.
+pub const IMAGE_BYTES_PER_PIXEL: u64 = 64;
+
 /// Parameters of a rendering, shared by every renderer (and the GPU path).
 #[derive(Debug, Clone)]
 pub struct RenderParams {
@@ -159,6 +163,12 @@ pub fn validate(params: &RenderParams) -> Result<(), RenderError> {
         return Err(GridError::SamplingScale(params.sampling_scale).into());
     }
     params.grid.validate()?;
+    let pixels = w as u64 * h as u64;
+    fluidcast_mem::check(
+        || format!("a {w}x{h} render"),
+        pixels.saturating_mul(IMAGE_BYTES_PER_PIXEL),
+    )
+    .map_err(GridError::from)?;
     if let Some(d) = &params.depth_limit {
         if d.len() != w as usize * h as usize {
             return Err(RenderError::DepthLimitSize(d.len(), w, h));

@@ -1,6 +1,6 @@
 use std::time::Instant;
 
-use fluidcast_grid::{screen_rect, view_particles, Ray, SampleDepths, ViewParticle};
+use fluidcast_grid::{screen_rect, view_particles, GridError, Ray, SampleDepths, ViewParticle};
 use fluidcast_image::Image;
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
@@ -53,9 +53,23 @@ pub fn render_reference(
     // Bin particles into screen tiles by a conservative screen-space bound of their support.
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
+    let rects: Vec<Option<[u32; 4]>> = vps
+        .iter()
+        .map(|p| screen_rect(&frame, p, near, far))
+        .collect();
+    let refs: u64 = rects
+        .iter()
+        .flatten()
+        .map(|r| u64::from((r[1] - 1) / TILE - r[0] / TILE + 1) * u64::from((r[3] - 1) / TILE - r[2] / TILE + 1))
+        .sum();
+    fluidcast_mem::check(
+        || format!("binning {refs} particle–tile references at {w}x{h}"),
+        refs.saturating_mul(4),
+    )
+    .map_err(GridError::from)?;
     let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
-    for (j, p) in vps.iter().enumerate() {
-        let Some([px0, px1, py0, py1]) = screen_rect(&frame, p, near, far) else {
+    for (j, rect) in rects.iter().enumerate() {
+        let Some([px0, px1, py0, py1]) = *rect else {
             continue;
         };
         stats.particles_visible += 1;

@@ -1,4 +1,4 @@
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use fluidcast_io::{DataArray, Dataset};
 
@@ -222,12 +222,52 @@ pub fn quantity_values(ds: &Dataset, q: &Quantity) -> Result<Vec<f64>, ParticleE
     })
 }
 
-/// Mean nearest-neighbour distance of (up to 4096 of) the finite points, world units.
-pub fn mean_spacing(points: &[[f64; 3]]) -> Option<f64> {
-    let pts: Vec<[f32; 3]> = points
+/// A far outlier lies beyond this many inter-quartile widths from the central half of
+/// the particles (spray flies a few body lengths; a corrupt coordinate, 10^10 and more).
+pub const OUTLIER_FACTOR: f64 = 1e4;
+
+/// Which finite points lie far outside the rest: more than [`OUTLIER_FACTOR`] times the
+/// largest inter-quartile width (over x, y, z) outside the box of the quartiles. Empty when
+/// there are none, fewer than 8 points, or more than half of them coincide.
+pub fn far_outliers(points: &[[f64; 3]]) -> Vec<usize> {
+    let finite: Vec<&[f64; 3]> = points
         .iter()
         .filter(|p| p.iter().all(|v| v.is_finite()))
-        .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+        .collect();
+    if finite.len() < 8 {
+        return Vec::new();
+    }
+    let quartiles = |k: usize| {
+        let mut v: Vec<f64> = finite.iter().map(|p| p[k]).collect();
+        let n = v.len();
+        let q1 = *v.select_nth_unstable_by(n / 4, f64::total_cmp).1;
+        let q3 = *v.select_nth_unstable_by(3 * n / 4, f64::total_cmp).1;
+        (q1, q3)
+    };
+    let q = [quartiles(0), quartiles(1), quartiles(2)];
+    let iqr = q.iter().map(|(a, b)| b - a).fold(0.0, f64::max);
+    if iqr.is_nan() || iqr <= 0.0 {
+        return Vec::new();
+    }
+    let margin = OUTLIER_FACTOR * iqr;
+    (0..points.len())
+        .filter(|&i| {
+            let p = points[i];
+            p.iter().all(|v| v.is_finite())
+                && (0..3).any(|k| p[k] < q[k].0 - margin || p[k] > q[k].1 + margin)
+        })
+        .collect()
+}
+
+/// Mean nearest-neighbour distance of (up to 4096 of) the finite points, world units; far
+/// outliers ([`far_outliers`]) do not count.
+pub fn mean_spacing(points: &[[f64; 3]]) -> Option<f64> {
+    let far = far_outliers(points);
+    let pts: Vec<[f32; 3]> = points
+        .iter()
+        .enumerate()
+        .filter(|(i, p)| p.iter().all(|v| v.is_finite()) && far.binary_search(i).is_err())
+        .map(|(_, p)| [p[0] as f32, p[1] as f32, p[2] as f32])
         .collect();
     if pts.len() < 2 {
         return None;
@@ -273,6 +313,27 @@ pub fn suggest_support_radius(points: &[[f64; 3]]) -> Option<f64> {
     mean_spacing(points).map(|s| 2.0 * s)
 }
 
+/// Refuses a particle quantity that single precision, in which the renderers compute,
+/// turns into infinity, or (for radii and volumes, which are divided by) into zero or a
+/// subnormal: a volume of 1e39, a radius of 1e-40.
+fn single_precision(file: &Path, index: usize, vals: &[(&str, f64)]) -> Result<(), ParticleError> {
+    for &(what, v) in vals {
+        let f = v as f32;
+        let divides = matches!(what, "volume" | "support radius");
+        let bad = (v.is_finite() && f.is_infinite()) || (divides && v != 0.0 && !f.is_normal());
+        if bad {
+            return Err(ParticleError::Other {
+                file: file.to_path_buf(),
+                message: format!(
+                    "{what} of particle {index} is {v:e}, outside single precision (the \
+                     renderers' arithmetic, about 1e-38 to 3e38): rescale the data"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 impl Particles {
     /// Builds particles from a data set. Points with a NaN/infinite coordinate are skipped and
     /// counted in `skipped_nonfinite`; bad radii or volumes of kept particles are errors.
@@ -316,7 +377,17 @@ impl Particles {
                 None => {
                     let h = suggest_support_radius(&ds.points).ok_or_else(|| ParticleError::Other {
                         file: file.clone(),
-                        message: "cannot suggest a support radius (fewer than 2 distinct points): give --support-radius".into(),
+                        message: format!(
+                            "cannot suggest a support radius: {} finite points with no \
+                             measurable spacing between neighbours{}: give --support-radius",
+                            keep.len(),
+                            ds.bounds()
+                                .map(|(lo, hi)| format!(
+                                    ", spread over {:.3e} world units",
+                                    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+                                ))
+                                .unwrap_or_default()
+                        ),
                     })?;
                     notes.push(format!(
                         "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
@@ -370,6 +441,20 @@ impl Particles {
                 _ => volumes.clone(),
             },
         };
+        let far = far_outliers(&ds.points);
+        if let Some(&i) = far.first() {
+            let x = ds.points[i];
+            notes.push(format!(
+                "warning: {} of {} particles lie far outside the rest (e.g. particle {i} at \
+                 ({:.3e}, {:.3e}, {:.3e})); they are rendered, and an automatic camera frames \
+                 them too: remove them, or set the camera",
+                far.len(),
+                keep.len(),
+                x[0],
+                x[1],
+                x[2]
+            ));
+        }
         let mut p = Particles {
             notes,
             skipped_nonfinite: n - keep.len(),
@@ -393,6 +478,8 @@ impl Particles {
                 });
             }
             let x = ds.points[i];
+            single_precision(&file, i, &[("volume", v), ("support radius", h)])?;
+            single_precision(&file, i, &[("mass", masses[i]), ("value", values[i])])?;
             p.positions.push([x[0] as f32, x[1] as f32, x[2] as f32]);
             p.radii.push(h as f32);
             p.volumes.push(v as f32);
