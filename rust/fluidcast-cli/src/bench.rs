@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::{compare, Image};
-use fluidcast_io::{read_dataset, Input};
+use fluidcast_io::Input;
 use fluidcast_render::{render_adaptive, render_reference, RenderStats};
 use fluidcast_sph::Particles;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -108,7 +108,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         ProgressStyle::with_template(
             "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} renders {msg}",
         )
-        .unwrap(),
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
@@ -118,13 +118,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut particles_n = 0;
     for &fi in &frames {
         let file = &all[fi].1;
-        let ds = read_dataset(file)?;
+        let ds = input.read(file)?;
         let particles = Particles::from_dataset(&ds, &spec)?;
         particles_n = particles_n.max(particles.len());
-        if setup.is_none() {
-            setup = Some(a.view.setup(&particles, &base, &base_tf, false)?);
-        }
-        let (cam0, tf) = setup.as_ref().unwrap();
+        let (cam0, tf) = match &setup {
+            Some(s) => s,
+            None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),
+        };
         for v in 0..a.views {
             let mut cam = cam0.clone();
             cam.azimuth(360.0 * v as f64 / a.views as f64);
@@ -174,7 +174,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
 
     let off_total = runs[0].median("total");
     let off_rc = runs[0].median("raycast");
-    println!(
+    out!(
         "{} ({} particles), {}x{}, {} view(s) x {} frame(s), D_xy {} D_z {}, relax {}, super-pixels {}, surface cells {}; medians in ms",
         a.input.display(),
         particles_n,
@@ -188,7 +188,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         base.adaptive.superpixels,
         base.adaptive.surface_cells
     );
-    println!(
+    out!(
         "{:<10} {:>8} {:>8} {:>9} {:>9} {:>14} {:>10} {:>10} {:>10}",
         "E_I",
         "grid",
@@ -203,7 +203,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
     if !a.no_reference {
         let t = reference.median("total");
-        println!(
+        out!(
             "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
             "reference",
             reference.median("bin"),
@@ -228,7 +228,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         } else {
             100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len() as f64
         };
-        println!(
+        out!(
             "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
             name,
             r.median("grid"),
@@ -259,13 +259,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     let mut gpu_rows = Vec::new();
     if let Some(g) = &gpu {
-        println!(
+        out!(
             "\nGPU (every stage) on {}; GPU memory held {:.1} MiB; medians in ms (wall clock, then GPU timestamps)",
             g.adapter,
             gpu_memory as f64 / (1024.0 * 1024.0)
         );
         let kernels = ["gpu_grid", "gpu_sort", "gpu_adapt", "gpu_raycast"];
-        println!(
+        out!(
             "{:<10} {:>8} {:>8} {:>9} {:>9} {:>9} {:>9} {:>10} {:>12} {:>14} {:>14} {:>12}",
             "E_I",
             "grid",
@@ -293,7 +293,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             let k: Vec<f64> = kernels.iter().map(|s| r.median(s)).collect();
             let share = 100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len().max(1) as f64;
             let speedup = c.median("total") / r.median("total");
-            println!(
+            out!(
                 "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>9} {:>9} {:>10} {:>12} {:>14} {:>14.5} {:>12.4}",
                 name,
                 r.median("grid"),

@@ -1,7 +1,7 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use fluidcast_io::{read_dataset, Input};
+use fluidcast_io::Input;
 use fluidcast_sph::suggest_support_radius;
 use serde_json::json;
 
@@ -17,7 +17,7 @@ pub struct InfoArgs {
 pub fn run(a: InfoArgs) -> Result<()> {
     let input = Input::open(&a.input)?;
     let frames = input.frames();
-    let ds = read_dataset(&frames[0].1)?;
+    let ds = input.read(&frames[0].1)?;
     let nonfinite = ds
         .points
         .iter()
@@ -44,7 +44,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
         .collect();
     let bounds = ds.bounds().map(|(lo, hi)| json!({"min": lo, "max": hi}));
     if a.json {
-        println!(
+        out!(
             "{}",
             json!({"file": ds.path, "frames": frames.len(), "points": ds.points.len(), "nonfinite_points": nonfinite,
                    "bounds": bounds, "point_data": arrays, "field_data": fields, "suggested_support_radius": suggested})
@@ -52,18 +52,18 @@ pub fn run(a: InfoArgs) -> Result<()> {
         return Ok(());
     }
     if let Input::Series(c) = &input {
-        println!(
+        out!(
             "series {}: {} frames, t = {} .. {}",
             c.path.display(),
             c.entries.len(),
-            c.entries[0].timestep,
-            c.entries.last().unwrap().timestep
+            c.entries.first().map_or(0.0, |e| e.timestep),
+            c.entries.last().map_or(0.0, |e| e.timestep)
         );
-        println!("first frame:");
+        out!("first frame:");
     }
-    println!("file:   {}", ds.path.display());
-    println!("kind:   {:?}", ds.kind);
-    println!(
+    out!("file:   {}", ds.path.display());
+    out!("kind:   {:?}", ds.kind);
+    out!(
         "points: {}{}",
         ds.points.len(),
         if nonfinite > 0 {
@@ -73,12 +73,12 @@ pub fn run(a: InfoArgs) -> Result<()> {
         }
     );
     if let Some((lo, hi)) = ds.bounds() {
-        println!(
+        out!(
             "bounds: x [{:.6}, {:.6}]  y [{:.6}, {:.6}]  z [{:.6}, {:.6}] (world units)",
             lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
         );
     }
-    println!("point data:");
+    out!("point data:");
     for x in &ds.point_data {
         let r = x
             .range()
@@ -91,7 +91,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
         } else {
             String::new()
         };
-        println!(
+        out!(
             "  {:<24} {:<8} x{}  range {r}{m}",
             x.name,
             x.scalar_type.vtk_name(),
@@ -99,10 +99,10 @@ pub fn run(a: InfoArgs) -> Result<()> {
         );
     }
     if !ds.field_data.is_empty() {
-        println!("field data:");
+        out!("field data:");
         for x in &ds.field_data {
             let vals: Vec<String> = x.values.iter().take(6).map(|v| format!("{v}")).collect();
-            println!(
+            out!(
                 "  {:<24} {:<8} {}{}",
                 x.name,
                 x.scalar_type.vtk_name(),
@@ -112,9 +112,9 @@ pub fn run(a: InfoArgs) -> Result<()> {
         }
     }
     match (ds.field_scalar("support_radius"), suggested) {
-        (Some(h), _) => println!("support radius: {h} (field data 'support_radius')"),
-        (None, Some(h)) => println!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
-        (None, None) => println!("no support radius can be suggested (fewer than 2 distinct points)"),
+        (Some(h), _) => out!("support radius: {h} (field data 'support_radius')"),
+        (None, Some(h)) => out!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
+        (None, None) => out!("no support radius can be suggested (no measurable spacing between neighbouring points)"),
     }
     Ok(())
 }

@@ -1,5 +1,17 @@
 //! `fluidcast`: volume rendering of SPH particle files from the command line.
 
+/// `println!` that returns write errors (a closed pipe, a full disk) with `?` instead of
+/// panicking; `main` ends quietly on a closed pipe, as other command-line tools do.
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        anyhow::Context::context(
+            writeln!(std::io::stdout().lock(), $($t)*),
+            "writing to standard output",
+        )?
+    }};
+}
+
 mod bench;
 mod info;
 mod options;
@@ -61,21 +73,37 @@ fn compare(a: CompareArgs) -> Result<()> {
             .with_context(|| format!("writing {}", d.display()))?;
     }
     if a.json {
-        println!(
+        out!(
             "{}",
             serde_json::json!({"max_abs": c.max_abs, "rmse": c.rmse, "frac_above": c.frac_above, "tolerance": c.tolerance,
                                "width": ia.width, "height": ia.height})
         );
     } else {
-        println!("max abs difference: {:.6}", c.max_abs);
-        println!("RMSE:               {:.6}", c.rmse);
-        println!(
+        out!("max abs difference: {:.6}", c.max_abs);
+        out!("RMSE:               {:.6}", c.rmse);
+        out!(
             "pixels above {:.5}: {:.4} %",
             c.tolerance,
             c.frac_above * 100.0
         );
     }
     Ok(())
+}
+
+/// The error and its causes on one line, each cause once: a library error that already
+/// quotes its source (`"{0}"` with `#[from]`) is not followed by that source again.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if !msg.contains(&c) {
+            if !msg.is_empty() {
+                msg.push_str(": ");
+            }
+            msg.push_str(&c);
+        }
+    }
+    msg
 }
 
 fn main() {
@@ -88,7 +116,14 @@ fn main() {
         Command::Bench(a) => bench::run(*a),
     };
     if let Err(e) = r {
-        eprintln!("error: {e:#}");
+        let closed_pipe = e.chain().any(|c| {
+            c.downcast_ref::<std::io::Error>()
+                .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+        });
+        if closed_pipe {
+            return; // the reader went away (`fluidcast info F | head`): nothing to report
+        }
+        eprintln!("error: {}", one_line(&e));
         std::process::exit(1);
     }
 }

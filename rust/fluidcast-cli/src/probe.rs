@@ -14,7 +14,9 @@ pub struct ProbeArgs {
     /// CSV of query points, one `x,y,z` per line (a header line is skipped).
     #[arg(long)]
     points: PathBuf,
-    /// Output CSV: x,y,z,value,shepard,density,neighbours (value empty where undefined).
+    /// Output CSV: x,y,z,value,shepard,density,neighbours. `value` is the rendered field,
+    /// left empty where it is undefined: the CSPH quotient where no particle reaches the
+    /// point (the SPH and density sums are 0 there, and printed as 0).
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
@@ -26,26 +28,7 @@ pub fn run(a: ProbeArgs) -> Result<()> {
     let p = Particles::from_dataset(&ds, &a.particles.spec()?)?;
     let text = std::fs::read_to_string(&a.points)
         .with_context(|| format!("reading {}", a.points.display()))?;
-    let mut pts = Vec::new();
-    for (n, line) in text.lines().enumerate() {
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        if f.len() < 3 {
-            continue;
-        }
-        match (
-            f[0].parse::<f64>(),
-            f[1].parse::<f64>(),
-            f[2].parse::<f64>(),
-        ) {
-            (Ok(x), Ok(y), Ok(z)) => pts.push([x, y, z]),
-            _ if n == 0 => {} // header
-            _ => bail!(
-                "{}: line {}: expected x,y,z numbers",
-                a.points.display(),
-                n + 1
-            ),
-        }
-    }
+    let pts = parse_points(&text).with_context(|| a.points.display().to_string())?;
     let kind = a.particles.field()?;
     let samples = p.sample_many(a.particles.kernel()?, &pts);
     let f = std::fs::File::create(&a.output)
@@ -64,4 +47,45 @@ pub fn run(a: ProbeArgs) -> Result<()> {
         )?;
     }
     Ok(())
+}
+
+/// Query points from CSV text: one `x,y,z` per line, an optional header line first, blank
+/// lines ignored; any other line is an error naming it.
+fn parse_points(text: &str) -> Result<Vec<[f64; 3]>> {
+    let mut pts = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        let nums: Option<Vec<f64>> = f.iter().map(|x| x.parse::<f64>().ok()).collect();
+        match (nums.as_deref(), n) {
+            (Some(&[x, y, z]), _) if [x, y, z].iter().all(|v| v.is_finite()) => pts.push([x, y, z]),
+            (None, 0) => {} // header
+            _ => bail!(
+                "line {}: expected three finite numbers x,y,z, found '{}'",
+                n + 1,
+                line.trim()
+            ),
+        }
+    }
+    if pts.is_empty() {
+        bail!("no query points");
+    }
+    Ok(pts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_points;
+
+    #[test]
+    fn csv_rows_must_have_three_numbers() {
+        assert_eq!(parse_points("x,y,z\n1,2,3\n\n4, 5 ,6\n").unwrap().len(), 2);
+        for bad in ["1,2\n", "1,2,3,4\n", "0,0,0\nx,y,z\n", "1,nan,2\n", "x,y,z\n"] {
+            assert!(parse_points(bad).is_err(), "{bad:?}");
+        }
+        let e = parse_points("0,0,0\n1,2\n").unwrap_err().to_string();
+        assert!(e.contains("line 2") && e.contains("'1,2'"), "{e}");
+    }
 }

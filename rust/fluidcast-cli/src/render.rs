@@ -3,7 +3,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
-use fluidcast_io::{read_dataset, Input};
+use fluidcast_io::Input;
 use fluidcast_render::{render_adaptive, render_reference, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
@@ -173,6 +173,9 @@ pub fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
     Ok(v)
 }
 
+/// The widest `%0Nd` frame field accepted (a frame index has at most 20 digits).
+const MAX_PATTERN_WIDTH: usize = 32;
+
 /// Expands a printf-style `%d` / `%0Nd` in the output path with the frame index.
 fn frame_path(pattern: &Path, index: usize) -> Result<PathBuf> {
     let s = pattern.to_string_lossy();
@@ -191,6 +194,9 @@ fn frame_path(pattern: &Path, index: usize) -> Result<PathBuf> {
             .parse()
             .with_context(|| format!("output pattern '{s}'"))?
     };
+    if width > MAX_PATTERN_WIDTH {
+        bail!("output pattern '{s}': a field width of {width} digits; at most {MAX_PATTERN_WIDTH}");
+    }
     Ok(PathBuf::from(format!(
         "{}{:0width$}{}",
         &s[..p],
@@ -225,18 +231,32 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
     v
 }
 
-pub fn run(a: RenderArgs) -> Result<()> {
-    let background = {
-        let v: Vec<f32> = a
-            .background
-            .split(',')
-            .filter_map(|x| x.trim().parse().ok())
-            .collect();
-        if v.len() != 3 {
-            bail!("--background '{}': expected r,g,b in 0..1", a.background);
+/// `--background r,g,b`: three finite numbers in 0..1.
+fn parse_background(s: &str) -> Result<[f32; 3]> {
+    let bad = || anyhow::anyhow!("--background '{s}': expected r,g,b, three numbers in 0..1");
+    let v = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|_| bad()))
+        .collect::<Result<Vec<f32>>>()?;
+    match v[..] {
+        [r, g, b] if v.iter().all(|c| (0.0..=1.0).contains(c)) => Ok([r, g, b]),
+        _ => Err(bad()),
+    }
+}
+
+/// Prints the particles' notes; warnings keep their own prefix.
+pub fn print_notes(notes: &[String]) {
+    for note in notes {
+        if note.starts_with("warning:") {
+            eprintln!("{note}");
+        } else {
+            eprintln!("note: {note}");
         }
-        [v[0], v[1], v[2]]
-    };
+    }
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let background = parse_background(&a.background)?;
     let png_encoding = if a.srgb {
         fluidcast_image::PngEncoding::Srgb
     } else {
@@ -272,17 +292,17 @@ pub fn run(a: RenderArgs) -> Result<()> {
             ProgressStyle::with_template(
                 "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}",
             )
-            .unwrap(),
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         pb
     });
     let gpu = open_gpu(a.sampling.backend, a.sampling.mode)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
-    for (n, &fi) in frames.iter().enumerate() {
+    for &fi in &frames {
         let t_read = Instant::now();
         let (time, file) = &all[fi];
-        let ds = read_dataset(file)?;
+        let ds = input.read(file)?;
         let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
         let t_prep = Instant::now();
         let particles = Particles::from_dataset(&ds, &spec)?;
@@ -293,22 +313,23 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 particles.skipped_nonfinite
             );
         }
-        if n == 0 {
-            for note in &particles.notes {
-                eprintln!("note: {note}");
+        // Camera, range and opacity unit are fixed from the first frame for a whole series.
+        let cam = match &camera {
+            Some(c) => c,
+            None => {
+                print_notes(&particles.notes);
+                let (cam, t) = a
+                    .view
+                    .setup(&particles, &params, &base_tf, progress.is_none())?;
+                tf = t;
+                camera.insert(cam)
             }
-            // Camera, range and opacity unit are fixed from the first frame for a whole series.
-            let (cam, t) = a
-                .view
-                .setup(&particles, &params, &base_tf, progress.is_none())?;
-            camera = Some(cam);
-            tf = t;
-        }
+        };
         let prep_ms = t_prep.elapsed().as_secs_f64() * 1e3;
         let (image, mut stats) = render_frame(
             &particles,
             None,
-            camera.as_ref().unwrap(),
+            cam,
             &tf,
             &params,
             a.sampling.mode,
@@ -358,7 +379,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     if let Some(p) = &a.stats {
         let v = if all_stats.len() == 1 {
-            all_stats.pop().unwrap()
+            all_stats.pop().unwrap_or_default()
         } else {
             serde_json::Value::Array(all_stats)
         };

@@ -203,7 +203,7 @@ impl ViewArgs {
         } else {
             let text = std::fs::read_to_string(&a.camera)
                 .with_context(|| format!("reading camera file {}", a.camera))?;
-            Camera::from_json(&text).with_context(|| format!("camera file {}", a.camera))?
+            Camera::from_json(&text).with_context(|| a.camera.clone())?
         };
         cam.azimuth(a.azimuth);
         cam.elevation(a.elevation);

@@ -1,4 +1,5 @@
 //! The adaptive renderer's options from the command line, and `fluidcast bench`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 use std::path::PathBuf;
 use std::process::Command;
 

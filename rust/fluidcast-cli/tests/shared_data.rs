@@ -1,5 +1,6 @@
 //! Every file in ../shared/data renders; the encodings of DoubleDamBreak frame 0011 give
 //! identical images.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -2,10 +2,12 @@ use std::path::{Path, PathBuf};
 
 /// A file could not be read; `Display` names the file and the problem.
 #[derive(Debug, thiserror::Error)]
-#[error("{}: {kind}", path.display())]
+#[error("{}{}: {kind}", path.display(), listed_in.as_ref().map(|p| format!(" (listed in {})", p.display())).unwrap_or_default())]
 pub struct ReadError {
     /// The file at fault.
     pub path: PathBuf,
+    /// The `.pvd` collection that referenced it, if any.
+    pub listed_in: Option<PathBuf>,
     /// What was wrong with it.
     pub kind: ReadErrorKind,
 }
@@ -14,8 +16,15 @@ impl ReadError {
     pub fn new(path: impl AsRef<Path>, kind: ReadErrorKind) -> Self {
         ReadError {
             path: path.as_ref().to_path_buf(),
+            listed_in: None,
             kind,
         }
+    }
+
+    /// The same error, saying which `.pvd` listed the file.
+    pub fn listed_in(mut self, collection: impl AsRef<Path>) -> Self {
+        self.listed_in = Some(collection.as_ref().to_path_buf());
+        self
     }
 }
 

@@ -394,6 +394,14 @@ impl Input {
         }
     }
 
+    /// Reads one of [`Input::frames`]' files; an error names the `.pvd` that listed it.
+    pub fn read(&self, file: &Path) -> Result<Dataset, ReadError> {
+        match self {
+            Input::File(_) => read_dataset(file),
+            Input::Series(c) => read_dataset(file).map_err(|e| e.listed_in(&c.path)),
+        }
+    }
+
     /// Frames as (time, file); a single file has one frame at the time in its `TIME` field
     /// data if the caller reads it, reported here as `None`.
     pub fn frames(&self) -> Vec<(Option<f64>, PathBuf)> {

@@ -1,4 +1,5 @@
 //! Every encoding VTK writes must give the same particles as the ascii file.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 use common::fixture;
 use fluidcast_io::{read_collection, read_dataset, Dataset, ScalarType};

@@ -1,4 +1,5 @@
 //! Every file in ../shared/data reads, and the encodings of DoubleDamBreak frame 0011 agree.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 use common::shared;
 use fluidcast_io::{read_collection, read_dataset};

@@ -1,6 +1,7 @@
 //! Regression tests, one per known vtkio 0.7.0-rc2 fault (see ../shared/data/README.md).
 //! Each fixture was written by VTK itself (tests/make_fixtures.py); the first test shows
 //! vtkio really fails on them, the others that our reader layer handles them.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 use common::fixture;
 use fluidcast_io::read_dataset;
