@@ -1,186 +1,487 @@
-//! Legacy `.vtk` (4.x and 5.1; ascii and big-endian binary) through vtkio.
+//! Legacy `.vtk` files (versions 2.0 to 5.1, ASCII and big-endian BINARY), read by our own
+//! parser so that every error names the line and what was expected.
 //!
-//! Two adaptations: VTK writes data-set-level field data (`FIELD FieldData n`, e.g. `TIME`)
-//! between the `DATASET` line and `POINTS`, which vtkio's grammar does not accept, so that
-//! block is cut out and parsed by vtkio on its own as a field-only file; and any panic
-//! inside vtkio is caught and reported as an error naming the file.
+//! Only `DATASET UNSTRUCTURED_GRID` and `DATASET POLYDATA` hold particles. The parser keeps
+//! the points, the point data (`SCALARS`, `VECTORS`, `NORMALS`, `TENSORS`, `TENSORS6`,
+//! `TEXTURE_COORDINATES`, `COLOR_SCALARS`, `GLOBAL_IDS`, `PEDIGREE_IDS`, `FIELD` arrays) and
+//! the data-set field data (`FIELD FieldData n` after `DATASET`, e.g. `TIME`); cells
+//! (4.x `CELLS n size` or 5.1 `OFFSETS`/`CONNECTIVITY`), cell types, cell data, lookup tables
+//! and `METADATA` blocks are skipped. Counts from the file are checked against the bytes
+//! that remain before anything is allocated.
 
-use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::Path;
 
-use vtkio::model::{Attribute, DataSet, FieldArray, IOBuffer, Piece};
-
-use crate::xml::find;
+use crate::xml::parse_token;
 use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
-fn line_end(b: &[u8], from: usize) -> usize {
-    find(b, b"\n", from).map(|p| p + 1).unwrap_or(b.len())
+/// A position in the file with the helpers the legacy grammar needs.
+struct Cursor<'a> {
+    b: &'a [u8],
+    pos: usize,
+    binary: bool,
 }
 
-fn vtkio_parse(bytes: &[u8]) -> Result<vtkio::Vtk, String> {
-    let owned = bytes.to_vec();
-    match catch_unwind(AssertUnwindSafe(move || {
-        vtkio::Vtk::parse_legacy_be(owned.as_slice())
-    })) {
-        Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(format!("{e:?}")),
-        Err(p) => Err(format!(
-            "vtkio panicked: {}",
-            p.downcast_ref::<String>()
-                .cloned()
-                .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default()
-        )),
-    }
-}
+type Res<T> = Result<T, String>;
 
-fn buffer(buf: &IOBuffer) -> (ScalarType, Vec<f64>) {
-    macro_rules! c {
-        ($v:expr, $t:expr) => {
-            ($t, $v.iter().map(|&x| x as f64).collect())
-        };
+impl<'a> Cursor<'a> {
+    /// Line number (1-based) of byte `at`.
+    fn line_of(&self, at: usize) -> usize {
+        1 + self.b.iter().take(at).filter(|&&c| c == b'\n').count()
     }
-    match buf {
-        IOBuffer::Bit(v) | IOBuffer::U8(v) => c!(v, ScalarType::U8),
-        IOBuffer::I8(v) => c!(v, ScalarType::I8),
-        IOBuffer::U16(v) => c!(v, ScalarType::U16),
-        IOBuffer::I16(v) => c!(v, ScalarType::I16),
-        IOBuffer::U32(v) => c!(v, ScalarType::U32),
-        IOBuffer::I32(v) => c!(v, ScalarType::I32),
-        IOBuffer::U64(v) => c!(v, ScalarType::U64),
-        IOBuffer::I64(v) => c!(v, ScalarType::I64),
-        IOBuffer::F32(v) => c!(v, ScalarType::F32),
-        IOBuffer::F64(v) => c!(v, ScalarType::F64),
-    }
-}
 
-fn field_arrays(arrays: &[FieldArray]) -> Vec<DataArray> {
-    arrays
-        .iter()
-        .map(|f| {
-            let (st, values) = buffer(&f.data);
-            DataArray {
-                name: f.name.clone(),
-                scalar_type: st,
-                num_components: (f.elem as usize).max(1),
-                values,
+    fn err<T>(&self, at: usize, msg: impl std::fmt::Display) -> Res<T> {
+        Err(format!("line {}: {msg}", self.line_of(at)))
+    }
+
+    fn skip_ws(&mut self) {
+        while self.b.get(self.pos).is_some_and(u8::is_ascii_whitespace) {
+            self.pos += 1;
+        }
+    }
+
+    /// The next whitespace-separated word and where it starts, consuming nothing (binary
+    /// data may follow, whose leading bytes must not be skipped as whitespace).
+    fn peek(&self) -> Option<(usize, &'a str)> {
+        let rest = self.b.get(self.pos..)?;
+        let ws = rest.iter().take_while(|c| c.is_ascii_whitespace()).count();
+        let rest = rest.get(ws..)?;
+        let n = rest.iter().take_while(|c| !c.is_ascii_whitespace()).count();
+        let w = rest.get(..n)?;
+        (n > 0).then(|| (self.pos + ws, std::str::from_utf8(w).unwrap_or("\u{fffd}")))
+    }
+
+    /// The rest of the current line (after skipping leading whitespace), consuming its
+    /// newline: binary data starts right after it.
+    fn line(&mut self) -> (usize, &'a str) {
+        self.skip_ws();
+        let start = self.pos;
+        let rest = self.b.get(start..).unwrap_or_default();
+        let n = rest.iter().position(|&c| c == b'\n').unwrap_or(rest.len());
+        self.pos = start + n + usize::from(n < rest.len());
+        let text = std::str::from_utf8(rest.get(..n).unwrap_or_default()).unwrap_or("\u{fffd}");
+        (start, text.trim_end_matches('\r'))
+    }
+
+    /// A header line split into words, its first word checked to be `key`.
+    fn header(&mut self, key: &str, nargs: usize) -> Res<(usize, Vec<&'a str>)> {
+        let (at, text) = self.line();
+        let w: Vec<&str> = text.split_ascii_whitespace().collect();
+        if !w.first().is_some_and(|k| k.eq_ignore_ascii_case(key)) || w.len() < nargs + 1 {
+            return self.err(
+                at,
+                format!("expected '{key}' and {nargs} value(s), found '{text}'"),
+            );
+        }
+        Ok((at, w))
+    }
+
+    fn count(&self, at: usize, w: &[&str], i: usize, what: &str) -> Res<usize> {
+        match w.get(i).map(|s| s.parse::<usize>()) {
+            Some(Ok(n)) => Ok(n),
+            _ => self.err(at, format!("bad {what} '{}'", w.get(i).unwrap_or(&""))),
+        }
+    }
+
+    fn scalar_type(&self, at: usize, name: &str) -> Res<ScalarType> {
+        match ScalarType::from_vtk_name(name) {
+            Some(_) if name == "bit" && self.binary => {
+                self.err(at, "binary 'bit' arrays are not supported")
             }
-        })
-        .collect()
+            Some(t) => Ok(t),
+            None if name.eq_ignore_ascii_case("string") => {
+                self.err(at, "string arrays are not supported")
+            }
+            None => self.err(at, format!("unknown data type '{name}'")),
+        }
+    }
+
+    /// `n` values of type `st` (big-endian in binary files), or a truncation error.
+    fn values(&mut self, n: usize, st: ScalarType, keep: bool) -> Res<Vec<f64>> {
+        let at = self.pos;
+        if self.binary {
+            let len = n.checked_mul(st.size());
+            let bytes = len
+                .and_then(|l| self.b.get(self.pos..self.pos.checked_add(l)?))
+                .ok_or_else(|| {
+                    format!(
+                        "line {}: {n} {} values need {} bytes, the file has {} left (file truncated?)",
+                        self.line_of(at),
+                        st.vtk_name(),
+                        len.map_or("too many".into(), |l| l.to_string()),
+                        self.b.len().saturating_sub(self.pos)
+                    )
+                })?;
+            self.pos += bytes.len();
+            return if keep {
+                st.decode(bytes, true)
+            } else {
+                Ok(Vec::new())
+            };
+        }
+        // Each ASCII value takes at least two bytes with its separator.
+        let left = self.b.len().saturating_sub(self.pos);
+        if n > left.div_ceil(2) {
+            return self.err(
+                at,
+                format!("{n} values announced, the file has {left} bytes left (file truncated?)"),
+            );
+        }
+        let mut out = Vec::with_capacity(if keep { n } else { 0 });
+        for i in 0..n {
+            let Some((tat, tok)) = self.peek() else {
+                return self.err(
+                    self.pos,
+                    format!("file ends after {i} of {n} values (truncated?)"),
+                );
+            };
+            let v = match tok {
+                "nan" | "-nan" | "NaN" | "-NaN" => f64::NAN,
+                _ => {
+                    parse_token(tok, st).map_err(|m| format!("line {}: {m}", self.line_of(tat)))?
+                }
+            };
+            self.pos = tat + tok.len();
+            if keep {
+                out.push(v);
+            }
+        }
+        Ok(out)
+    }
+
+    /// Skips a `METADATA` block: lines up to and including the next empty line.
+    fn skip_metadata(&mut self) {
+        self.line();
+        loop {
+            let rest = self.b.get(self.pos..).unwrap_or_default();
+            if rest.is_empty() {
+                return;
+            }
+            let n = rest.iter().position(|&c| c == b'\n').unwrap_or(rest.len());
+            let blank = rest
+                .get(..n)
+                .is_some_and(|l| l.iter().all(u8::is_ascii_whitespace));
+            self.pos += n + usize::from(n < rest.len());
+            if blank {
+                return;
+            }
+        }
+    }
+
+    /// Skips an optional `METADATA` block after an array.
+    fn maybe_metadata(&mut self) {
+        if self.peek().is_some_and(|(_, w)| w == "METADATA") {
+            self.skip_metadata();
+        }
+    }
 }
 
-/// VTK names 64-bit attribute arrays `vtktypeint64` / `vtktypeuint64`; vtkio only accepts
-/// those names on 5.1 `OFFSETS`/`CONNECTIVITY` lines. Rename them to `long` /
-/// `unsigned_long` (which vtkio reads as 64-bit) on every other line.
-fn rename_int64_types(b: &[u8]) -> Vec<u8> {
+/// `%20`-style escapes in legacy array names (VTK writes spaces this way).
+fn unescape(name: &str) -> String {
+    let b = name.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
     while i < b.len() {
-        let rest = &b[i..];
-        let (pat, repl): (&[u8], &[u8]) = if rest.starts_with(b" vtktypeint64") {
-            (b" vtktypeint64", b" long")
-        } else if rest.starts_with(b" vtktypeuint64") {
-            (b" vtktypeuint64", b" unsigned_long")
-        } else {
-            out.push(b[i]);
-            i += 1;
-            continue;
-        };
-        let line_start = b[..i]
-            .iter()
-            .rposition(|&c| c == b'\n')
-            .map(|p| p + 1)
-            .unwrap_or(0);
-        let line = &b[line_start..i];
-        if line.starts_with(b"OFFSETS") || line.starts_with(b"CONNECTIVITY") {
-            out.extend_from_slice(pat);
-        } else {
-            out.extend_from_slice(repl);
+        let hex = b
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok());
+        match (b.get(i), hex.and_then(|h| u8::from_str_radix(h, 16).ok())) {
+            (Some(b'%'), Some(v)) => {
+                out.push(v);
+                i += 3;
+            }
+            (Some(&c), _) => {
+                out.push(c);
+                i += 1;
+            }
+            (None, _) => break,
         }
-        i += pat.len();
     }
-    out
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Which attribute section the parser is in.
+#[derive(Clone, Copy, PartialEq)]
+enum Section {
+    /// Before any `POINT_DATA`/`CELL_DATA`: `FIELD` is data-set field data.
+    DataSet,
+    Point(usize),
+    Cell(usize),
+}
+
+#[derive(Default)]
+struct Parsed {
+    points: Option<Vec<[f64; 3]>>,
+    point_data: Vec<DataArray>,
+    field_data: Vec<DataArray>,
+    point_data_count: Option<usize>,
 }
 
 pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
-    let err = |k| ReadError::new(path, k);
-    if !bytes.starts_with(b"# vtk DataFile") {
-        return Err(err(ReadErrorKind::Format(
-            "not a legacy VTK file (no '# vtk DataFile' header)".into(),
+    let err = |m: String| ReadError::new(path, ReadErrorKind::Format(m));
+    let (kind, c) = parse_header(bytes).map_err(err)?;
+    let p = parse_body(c).map_err(err)?;
+    let points = p.points.ok_or_else(|| err("no POINTS section".into()))?;
+    if let Some(n) = p.point_data_count.filter(|&n| n != points.len()) {
+        return Err(err(format!(
+            "POINT_DATA {n} does not match POINTS {}",
+            points.len()
         )));
-    }
-    // Header: version line, title line, ASCII|BINARY line.
-    let l1 = line_end(bytes, 0);
-    let l2 = line_end(bytes, l1);
-    let l3 = line_end(bytes, l2);
-    let header = &bytes[..l3];
-    let ds_line = find(bytes, b"DATASET", l3)
-        .ok_or_else(|| err(ReadErrorKind::Format("no DATASET line".into())))?;
-    let after_ds = line_end(bytes, ds_line);
-    let mut field_data = Vec::new();
-    let mut body: Vec<u8> = bytes.to_vec();
-    if bytes[after_ds..].starts_with(b"FIELD") {
-        let end = find(bytes, b"\nPOINTS ", after_ds)
-            .map(|p| p + 1)
-            .ok_or_else(|| {
-                err(ReadErrorKind::Format(
-                    "FIELD block not followed by POINTS".into(),
-                ))
-            })?;
-        let mut mini = header.to_vec();
-        mini.extend_from_slice(&bytes[after_ds..end]);
-        let v = vtkio_parse(&mini)
-            .map_err(|m| err(ReadErrorKind::Library(format!("field data: {m}"))))?;
-        if let DataSet::Field { data_array, .. } = &v.data {
-            field_data = field_arrays(data_array);
-        }
-        body = bytes[..after_ds].to_vec();
-        body.extend_from_slice(&bytes[end..]);
-    }
-    let body = rename_int64_types(&body);
-    let v = vtkio_parse(&body).map_err(|m| err(ReadErrorKind::Library(m)))?;
-    let (kind, points, attrs) = match v.data {
-        DataSet::UnstructuredGrid { pieces, .. } => match pieces.into_iter().next() {
-            Some(Piece::Inline(p)) => (DatasetKind::UnstructuredGrid, p.points, p.data),
-            _ => return Err(err(ReadErrorKind::Format("no inline piece".into()))),
-        },
-        DataSet::PolyData { pieces, .. } => match pieces.into_iter().next() {
-            Some(Piece::Inline(p)) => (DatasetKind::PolyData, p.points, p.data),
-            _ => return Err(err(ReadErrorKind::Format("no inline piece".into()))),
-        },
-        _ => {
-            return Err(err(ReadErrorKind::Format(
-                "only UNSTRUCTURED_GRID and POLYDATA legacy files hold particles".into(),
-            )))
-        }
-    };
-    let (_, pv) = buffer(&points);
-    if pv.len() % 3 != 0 {
-        return Err(err(ReadErrorKind::Format(
-            "POINTS holds a number of values not divisible by 3".into(),
-        )));
-    }
-    let points: Vec<[f64; 3]> = pv.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    let mut point_data = Vec::new();
-    for a in &attrs.point {
-        match a {
-            Attribute::DataArray(d) => {
-                let (st, values) = buffer(&d.data);
-                point_data.push(DataArray {
-                    name: d.name.clone(),
-                    scalar_type: st,
-                    num_components: d.elem.num_comp() as usize,
-                    values,
-                });
-            }
-            Attribute::Field { data_array, .. } => point_data.extend(field_arrays(data_array)),
-        }
     }
     Ok(Dataset {
         path: path.to_path_buf(),
         kind,
         points,
-        point_data,
-        field_data,
+        point_data: p.point_data,
+        field_data: p.field_data,
     })
+}
+
+/// The three header lines and the `DATASET` line.
+fn parse_header(bytes: &[u8]) -> Res<(DatasetKind, Cursor<'_>)> {
+    let mut c = Cursor {
+        b: bytes,
+        pos: 0,
+        binary: false,
+    };
+    if !bytes.starts_with(b"# vtk DataFile") {
+        return Err("not a legacy VTK file (no '# vtk DataFile Version' header)".into());
+    }
+    c.line();
+    // The title line may be empty: take it as it is, without skipping blank lines.
+    let rest = bytes.get(c.pos..).unwrap_or_default();
+    c.pos += rest
+        .iter()
+        .position(|&b| b == b'\n')
+        .map_or(rest.len(), |n| n + 1);
+    let (at, fmt) = c.line();
+    c.binary = match fmt.trim().to_ascii_uppercase().as_str() {
+        "ASCII" => false,
+        "BINARY" => true,
+        o => return c.err(at, format!("expected ASCII or BINARY, found '{o}'")),
+    };
+    let (at, w) = c.header("DATASET", 1)?;
+    let kind = match w.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
+        Some("UNSTRUCTURED_GRID") => DatasetKind::UnstructuredGrid,
+        Some("POLYDATA") => DatasetKind::PolyData,
+        Some(o) => {
+            return c.err(
+                at,
+                format!("DATASET {o} is not particle data (only UNSTRUCTURED_GRID and POLYDATA)"),
+            )
+        }
+        None => return c.err(at, "DATASET without a type"),
+    };
+    Ok((kind, c))
+}
+
+/// Every section after `DATASET`, keyword by keyword.
+fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
+    let mut p = Parsed::default();
+    let mut section = Section::DataSet;
+    while let Some((at, key)) = c.peek() {
+        match key.to_ascii_uppercase().as_str() {
+            "POINTS" => {
+                let (at, w) = c.header("POINTS", 2)?;
+                let n = c.count(at, &w, 1, "point count")?;
+                let st = c.scalar_type(at, w.get(2).unwrap_or(&""))?;
+                let n3 = n
+                    .checked_mul(3)
+                    .ok_or_else(|| format!("line {}: too many points", c.line_of(at)))?;
+                let v = c.values(n3, st, true)?;
+                p.points = Some(v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect());
+                c.maybe_metadata();
+            }
+            "VERTICES" | "LINES" | "POLYGONS" | "TRIANGLE_STRIPS" | "CELLS" => {
+                skip_cells(&mut c, key)?
+            }
+            "CELL_TYPES" => {
+                let (at, w) = c.header("CELL_TYPES", 1)?;
+                let n = c.count(at, &w, 1, "cell count")?;
+                c.values(n, ScalarType::I32, false)?;
+            }
+            "METADATA" => c.skip_metadata(),
+            "POINT_DATA" | "CELL_DATA" => {
+                let point = key.eq_ignore_ascii_case("POINT_DATA");
+                let (at, w) = c.header(key, 1)?;
+                let n = c.count(at, &w, 1, "tuple count")?;
+                section = if point {
+                    Section::Point(n)
+                } else {
+                    Section::Cell(n)
+                };
+                if point {
+                    p.point_data_count = Some(n);
+                }
+            }
+            "FIELD" => {
+                let arrays = field(
+                    &mut c,
+                    match section {
+                        Section::DataSet => None,
+                        Section::Point(n) | Section::Cell(n) => Some(n),
+                    },
+                )?;
+                match section {
+                    Section::DataSet => p.field_data.extend(arrays),
+                    Section::Point(_) => p.point_data.extend(arrays),
+                    Section::Cell(_) => {}
+                }
+            }
+            _ => {
+                let n = match section {
+                    Section::Point(n) | Section::Cell(n) => n,
+                    Section::DataSet => {
+                        return c.err(
+                            at,
+                            format!("unexpected '{key}' (expected POINTS, cells or POINT_DATA)"),
+                        )
+                    }
+                };
+                let a = attribute(&mut c, n)?;
+                if let (Section::Point(_), Some(a)) = (section, a) {
+                    p.point_data.push(a);
+                }
+            }
+        }
+    }
+    Ok(p)
+}
+
+/// Skips one cell section: 4.x `KEY n size` + `size` ints, or 5.1 `KEY noffsets nconn`
+/// + `OFFSETS type` + values + `CONNECTIVITY type` + values.
+fn skip_cells(c: &mut Cursor<'_>, key: &str) -> Res<()> {
+    let (at, w) = c.header(key, 2)?;
+    let a = c.count(at, &w, 1, "cell count")?;
+    let b = c.count(at, &w, 2, "cell list size")?;
+    if c.peek().is_some_and(|(_, k)| k == "OFFSETS") {
+        for (k, n) in [("OFFSETS", a), ("CONNECTIVITY", b)] {
+            let (at, w) = c.header(k, 1)?;
+            let st = c.scalar_type(at, w.get(1).unwrap_or(&""))?;
+            c.values(n, st, false)?;
+        }
+    } else {
+        c.values(b, ScalarType::I32, false)?;
+    }
+    Ok(())
+}
+
+/// `FIELD name n` and its `n` arrays (`name ncomp ntuples type` + values); `tuples` is the
+/// section's tuple count, which attribute arrays must match.
+fn field(c: &mut Cursor<'_>, tuples: Option<usize>) -> Res<Vec<DataArray>> {
+    let (at, w) = c.header("FIELD", 2)?;
+    let n = c.count(at, &w, 2, "array count")?;
+    let mut out = Vec::new();
+    for _ in 0..n {
+        let (at, line) = c.line();
+        let w: Vec<&str> = line.split_ascii_whitespace().collect();
+        if w.first() == Some(&"NULL_ARRAY") {
+            continue;
+        }
+        if w.len() < 4 {
+            return c.err(
+                at,
+                format!("expected 'name components tuples type', found '{line}'"),
+            );
+        }
+        let nc = c.count(at, &w, 1, "component count")?;
+        let nt = c.count(at, &w, 2, "tuple count")?;
+        let st = c.scalar_type(at, w.get(3).unwrap_or(&""))?;
+        if nc == 0 {
+            return c.err(at, "an array with 0 components");
+        }
+        if let Some(t) = tuples.filter(|&t| t != nt) {
+            return c.err(at, format!("array has {nt} tuples, the section {t}"));
+        }
+        let total = nc
+            .checked_mul(nt)
+            .ok_or_else(|| format!("line {}: array too large", c.line_of(at)))?;
+        let values = c.values(total, st, true)?;
+        out.push(DataArray {
+            name: unescape(w.first().unwrap_or(&"")),
+            scalar_type: st,
+            num_components: nc,
+            values,
+        });
+        c.maybe_metadata();
+    }
+    Ok(out)
+}
+
+/// One attribute array of a `POINT_DATA`/`CELL_DATA` section with `n` tuples; `None` for
+/// lookup tables.
+fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
+    let (at, line) = c.line();
+    let w: Vec<&str> = line.split_ascii_whitespace().collect();
+    let key = w
+        .first()
+        .map(|k| k.to_ascii_uppercase())
+        .unwrap_or_default();
+    let name = unescape(w.get(1).unwrap_or(&""));
+    let binary = c.binary;
+    let ty = |c: &Cursor<'_>, i: usize| c.scalar_type(at, w.get(i).unwrap_or(&""));
+    let (st, nc) = match key.as_str() {
+        "SCALARS" => {
+            let nc = match w.get(3) {
+                Some(_) => c.count(at, &w, 3, "component count")?,
+                None => 1,
+            };
+            let st = ty(c, 2)?;
+            if c.peek()
+                .is_some_and(|(_, k)| k.eq_ignore_ascii_case("LOOKUP_TABLE"))
+            {
+                c.line();
+            }
+            (st, nc)
+        }
+        "VECTORS" | "NORMALS" => (ty(c, 2)?, 3),
+        "TENSORS" => (ty(c, 2)?, 9),
+        "TENSORS6" => (ty(c, 2)?, 6),
+        "TEXTURE_COORDINATES" => (ty(c, 3)?, c.count(at, &w, 2, "dimension")?),
+        "GLOBAL_IDS" | "PEDIGREE_IDS" => (ty(c, 2)?, 1),
+        "COLOR_SCALARS" => {
+            let nc = c.count(at, &w, 2, "component count")?;
+            let st = if binary {
+                ScalarType::U8
+            } else {
+                ScalarType::F32
+            };
+            (st, nc)
+        }
+        "LOOKUP_TABLE" => {
+            let size = c.count(at, &w, 2, "table size")?;
+            let st = if binary {
+                ScalarType::U8
+            } else {
+                ScalarType::F32
+            };
+            let total = size
+                .checked_mul(4)
+                .ok_or_else(|| format!("line {}: table too large", c.line_of(at)))?;
+            c.values(total, st, false)?;
+            return Ok(None);
+        }
+        _ => {
+            return c.err(
+                at,
+                format!(
+                    "unexpected '{}' in a data section",
+                    w.first().unwrap_or(&"")
+                ),
+            )
+        }
+    };
+    if nc == 0 {
+        return c.err(at, "an array with 0 components");
+    }
+    let total = n
+        .checked_mul(nc)
+        .ok_or_else(|| format!("line {}: array too large", c.line_of(at)))?;
+    let values = c.values(total, st, true)?;
+    c.maybe_metadata();
+    Ok(Some(DataArray {
+        name,
+        scalar_type: st,
+        num_components: nc,
+        values,
+    }))
 }

@@ -314,7 +314,9 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
     let f = std::fs::File::open(path).map_err(|e| err(ReadErrorKind::Io(e)))?;
     let meta = f.metadata().map_err(|e| err(ReadErrorKind::Io(e)))?;
     if meta.is_dir() {
-        return Err(err(ReadErrorKind::Format("is a directory, not a file".into())));
+        return Err(err(ReadErrorKind::Format(
+            "is a directory, not a file".into(),
+        )));
     }
     let limit = if meta.is_file() {
         fluidcast_mem::check(|| "reading this file".into(), meta.len())

@@ -125,11 +125,18 @@ fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErr
                 .into(),
         ));
     }
-    Ok((bytes.get(..start).unwrap_or_default(), Some(Appended { data, base64 })))
+    Ok((
+        bytes.get(..start).unwrap_or_default(),
+        Some(Appended { data, base64 }),
+    ))
 }
 
 fn trim_end(b: &[u8]) -> &[u8] {
-    let n = b.iter().rev().take_while(|c| c.is_ascii_whitespace()).count();
+    let n = b
+        .iter()
+        .rev()
+        .take_while(|c| c.is_ascii_whitespace())
+        .count();
     b.get(..b.len() - n).unwrap_or_default()
 }
 
@@ -278,9 +285,9 @@ fn parse_head(head: &[u8], appended: bool) -> Result<Head, ReadErrorKind> {
             _ => {}
         }
     }
-    let fa = p.file_attrs.ok_or_else(|| {
-        ReadErrorKind::Format("not a VTK XML file (no <VTKFile> element)".into())
-    })?;
+    let fa = p
+        .file_attrs
+        .ok_or_else(|| ReadErrorKind::Format("not a VTK XML file (no <VTKFile> element)".into()))?;
     let complete = if appended {
         p.depth == 1 && !p.root_closed
     } else {
@@ -485,8 +492,7 @@ fn decode_values(
             decode_base64(&text, ctx, expected_bytes)?
         }
         "appended" => {
-            let app = appended
-                .ok_or("format is 'appended' but the file has no <AppendedData>")?;
+            let app = appended.ok_or("format is 'appended' but the file has no <AppendedData>")?;
             let off: usize = d
                 .attrs
                 .get("offset")
@@ -501,7 +507,11 @@ fn decode_values(
                 decode_raw(src, ctx, expected_bytes)?
             }
         }
-        o => return Err(format!("unknown format '{o}' (expected ascii, binary or appended)")),
+        o => {
+            return Err(format!(
+                "unknown format '{o}' (expected ascii, binary or appended)"
+            ))
+        }
     };
     st.decode(&raw, ctx.big_endian)
 }
