@@ -249,8 +249,13 @@ impl BlockHeader {
 }
 
 /// Decodes one raw binary payload (header + data) starting at `src`. `expected` is the
-/// array's byte size from the XML, when known.
-pub(crate) fn decode_raw(src: &[u8], ctx: Ctx, expected: Option<usize>) -> Result<Vec<u8>, String> {
+/// array's byte size from the XML, when known. Returns the bytes and how many bytes of
+/// `src` the payload took.
+pub(crate) fn decode_raw(
+    src: &[u8],
+    ctx: Ctx,
+    expected: Option<usize>,
+) -> Result<(Vec<u8>, usize), String> {
     match ctx.compressor {
         None => {
             let n = ctx.word(src, 0).ok_or("data header is truncated")?;
@@ -262,12 +267,13 @@ pub(crate) fn decode_raw(src: &[u8], ctx: Ctx, expected: Option<usize>) -> Resul
                     "data header says {n} bytes but only {avail} follow (file truncated?)"
                 ));
             }
-            Ok(src.get(hb..hb + n).unwrap_or_default().to_vec())
+            Ok((src.get(hb..hb + n).unwrap_or_default().to_vec(), hb + n))
         }
         Some(c) => {
             let h = BlockHeader::parse(src, ctx, expected)?;
             let hl = BlockHeader::len_for(h.compressed.len(), ctx);
-            h.inflate(src.get(hl..).unwrap_or_default(), c)
+            let data = h.inflate(src.get(hl..).unwrap_or_default(), c)?;
+            Ok((data, hl + h.total_compressed()?))
         }
     }
 }
@@ -300,11 +306,12 @@ fn b64_slice(text: &[u8], from: usize, len: usize) -> Result<&[u8], String> {
 /// Decodes a base64 payload (header + data). VTK encodes header and data either as one
 /// base64 stream or as two separately padded ones (VTK's compressed arrays, pyvisfile's
 /// version 0.1 files); the two differ only where the header's last quantum holds padding.
+/// Returns the bytes and how many characters of `text` the payload took.
 pub(crate) fn decode_base64(
     text: &[u8],
     ctx: Ctx,
     expected: Option<usize>,
-) -> Result<Vec<u8>, String> {
+) -> Result<(Vec<u8>, usize), String> {
     let hb = ctx.hb();
     let Some(c) = ctx.compressor else {
         let hc = b64_chars(hb);
@@ -321,10 +328,13 @@ pub(crate) fn decode_base64(
         }
         let separate = !hb.is_multiple_of(3) && text.get(hc - 1) == Some(&b'=');
         return if separate {
-            b64(b64_slice(text, hc, b64_chars(n))?)
+            Ok((b64(b64_slice(text, hc, b64_chars(n))?)?, hc + b64_chars(n)))
         } else {
             let all = b64(b64_slice(text, 0, b64_chars(hb + n))?)?;
-            Ok(all.get(hb..hb + n).unwrap_or_default().to_vec())
+            Ok((
+                all.get(hb..hb + n).unwrap_or_default().to_vec(),
+                b64_chars(hb + n),
+            ))
         };
     };
     // The first three words take exactly 4*hb characters (3*hb bytes, no padding).
@@ -343,11 +353,17 @@ pub(crate) fn decode_base64(
             text.len()
         ));
     }
-    let data = if separate {
-        b64(b64_slice(text, hc, b64_chars(total))?)?
+    let (data, used) = if separate {
+        (
+            b64(b64_slice(text, hc, b64_chars(total))?)?,
+            hc + b64_chars(total),
+        )
     } else {
         let all = b64(b64_slice(text, 0, b64_chars(hlen + total))?)?;
-        all.get(hlen..).unwrap_or_default().to_vec()
+        (
+            all.get(hlen..).unwrap_or_default().to_vec(),
+            b64_chars(hlen + total),
+        )
     };
-    h.inflate(&data, c)
+    Ok((h.inflate(&data, c)?, used))
 }

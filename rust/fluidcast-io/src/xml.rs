@@ -76,6 +76,37 @@ pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
 struct Appended<'a> {
     data: &'a [u8],
     base64: bool,
+    /// Where the data ends: the position of `</AppendedData>` less the whitespace before it.
+    end: usize,
+    /// Every array's `offset`, sorted: each payload must end where the next one starts.
+    offsets: Vec<usize>,
+}
+
+impl Appended<'_> {
+    /// Checks that the payload at `off`, `used` bytes long, ends exactly where the next
+    /// array (or the appended data) starts: VTK writes payloads back to back, so a gap or an
+    /// overlap means a header of the wrong size (`header_type` mislabelled) or damage.
+    fn check_extent(&self, off: usize, used: usize) -> Result<(), String> {
+        let end = off.saturating_add(used);
+        let next = self
+            .offsets
+            .iter()
+            .copied()
+            .find(|&o| o > off)
+            .unwrap_or(self.end);
+        if end != next {
+            return Err(format!(
+                "its data ends at byte {end} of the appended section but the next {} at byte \
+                 {next}: the header_type or an offset does not match the data",
+                if next == self.end {
+                    "section ends"
+                } else {
+                    "array starts"
+                }
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Splits the file into the XML head and the appended data, checking the `<AppendedData>`
@@ -125,10 +156,20 @@ fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErr
                 .into(),
         ));
     }
-    Ok((
-        bytes.get(..start).unwrap_or_default(),
-        Some(Appended { data, base64 }),
-    ))
+    let end = trim_end(
+        body.strip_suffix(b"</VTKFile>")
+            .map(trim_end)
+            .and_then(|b| b.strip_suffix(b"</AppendedData>"))
+            .unwrap_or_default(),
+    )
+    .len();
+    let appended = Appended {
+        data,
+        base64,
+        end,
+        offsets: Vec::new(),
+    };
+    Ok((bytes.get(..start).unwrap_or_default(), Some(appended)))
 }
 
 fn trim_end(b: &[u8]) -> &[u8] {
@@ -359,8 +400,17 @@ fn file_ctx(fa: &HashMap<String, String>) -> Result<Ctx, ReadErrorKind> {
 /// Parses a `.vtu` or `.vtp` file's bytes.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     let err = |k: ReadErrorKind| ReadError::new(path, k);
-    let (head, appended) = split_appended(bytes).map_err(err)?;
+    let (head, mut appended) = split_appended(bytes).map_err(err)?;
     let h = parse_head(head, appended.is_some()).map_err(err)?;
+    if let Some(app) = appended.as_mut() {
+        app.offsets = h
+            .decls
+            .iter()
+            .filter(|d| d.attrs.get("format").is_some_and(|f| f == "appended"))
+            .filter_map(|d| d.attrs.get("offset").and_then(|s| s.trim().parse().ok()))
+            .collect();
+        app.offsets.sort_unstable();
+    }
     let ctx = file_ctx(&h.file_attrs).map_err(err)?;
     let mut pieces = h.pieces;
     let mut field_data = Vec::new();
@@ -489,7 +539,7 @@ fn decode_values(
                 .copied()
                 .filter(|c| !c.is_ascii_whitespace())
                 .collect();
-            decode_base64(&text, ctx, expected_bytes)?
+            decode_base64(&text, ctx, expected_bytes)?.0
         }
         "appended" => {
             let app = appended.ok_or("format is 'appended' but the file has no <AppendedData>")?;
@@ -498,14 +548,16 @@ fn decode_values(
                 .get("offset")
                 .and_then(|s| s.trim().parse().ok())
                 .ok_or("appended array without a valid offset")?;
-            let src = app.data.get(off..).ok_or_else(|| {
+            let src = app.data.get(off..app.end).ok_or_else(|| {
                 format!("offset {off} is beyond the end of the appended data (file truncated?)")
             })?;
-            if app.base64 {
+            let (raw, used) = if app.base64 {
                 decode_base64(src, ctx, expected_bytes)?
             } else {
                 decode_raw(src, ctx, expected_bytes)?
-            }
+            };
+            app.check_extent(off, used)?;
+            raw
         }
         o => {
             return Err(format!(

@@ -1,0 +1,300 @@
+//! Hostile and damaged files: each gets a clean error naming the problem, never a panic
+//! or an allocation of what a header claims (this test process would abort on one: the
+//! forged sizes below are 1 TiB and more).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use base64::Engine;
+use fluidcast_io::{parse_collection, parse_dataset, read_dataset};
+
+fn fixture(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/fixtures")
+        .join(name)
+}
+
+/// The error message for `bytes` read as a file named `name`.
+fn refused(bytes: &[u8], name: &str) -> String {
+    match parse_dataset(bytes, Path::new(name)) {
+        Ok(_) => panic!("{name}: accepted"),
+        Err(e) => {
+            let m = e.to_string();
+            assert!(m.starts_with(name), "error does not name the file: {m}");
+            m
+        }
+    }
+}
+
+const B64: base64::engine::GeneralPurpose = base64::engine::general_purpose::STANDARD;
+
+/// One point (three Float32) with its payload inline as base64, and the file's attributes.
+fn inline_vtu(file_attrs: &str, payload: &[u8]) -> Vec<u8> {
+    format!(
+        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid><Piece NumberOfPoints="1" NumberOfCells="0"><Points><DataArray type="Float32" NumberOfComponents="3" format="binary">{}</DataArray></Points></Piece></UnstructuredGrid></VTKFile>"#,
+        B64.encode(payload)
+    )
+    .into_bytes()
+}
+
+/// The same point as appended data (raw or base64).
+fn appended_vtu(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
+    let mut out = format!(
+        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid><Piece NumberOfPoints="1" NumberOfCells="0"><Points><DataArray type="Float32" NumberOfComponents="3" format="appended" offset="0"/></Points></Piece></UnstructuredGrid><AppendedData encoding="{}">_"#,
+        if base64 { "base64" } else { "raw" }
+    )
+    .into_bytes();
+    if base64 {
+        out.extend(B64.encode(payload).bytes());
+    } else {
+        out.extend_from_slice(payload);
+    }
+    out.extend_from_slice(b"\n</AppendedData></VTKFile>\n");
+    out
+}
+
+fn words(w: &[u64]) -> Vec<u8> {
+    w.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+fn compress(c: &str, data: &[u8]) -> Vec<u8> {
+    match c {
+        "vtkZLibDataCompressor" => {
+            let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+            e.write_all(data).unwrap();
+            e.finish().unwrap()
+        }
+        "vtkLZ4DataCompressor" => lz4_flex::block::compress(data),
+        _ => {
+            let mut out = Vec::new();
+            lzma_rs::xz_compress(&mut std::io::Cursor::new(data), &mut out).unwrap();
+            out
+        }
+    }
+}
+
+/// Every container (inline binary, appended raw, appended base64) around `payload`.
+fn containers(compressor: &str, payload: &[u8]) -> Vec<(String, Vec<u8>)> {
+    let attrs = format!(r#"compressor="{compressor}""#);
+    vec![
+        ("inline".into(), inline_vtu(&attrs, payload)),
+        ("raw".into(), appended_vtu(&attrs, payload, false)),
+        ("base64".into(), appended_vtu(&attrs, payload, true)),
+    ]
+}
+
+const COMPRESSORS: [&str; 3] = [
+    "vtkZLibDataCompressor",
+    "vtkLZ4DataCompressor",
+    "vtkLZMADataCompressor",
+];
+
+#[test]
+fn forged_block_sizes_are_refused_before_allocating() {
+    let twelve = [0u8; 12];
+    for c in COMPRESSORS {
+        let blk = compress(c, &twelve);
+        let forged: [(&str, Vec<u64>); 4] = [
+            ("1 TiB block", vec![1, 1 << 40, 1 << 40, blk.len() as u64]),
+            ("3 GiB last block", vec![1, 12, 3 << 30, blk.len() as u64]),
+            ("100 blocks of 1 GiB", {
+                let mut w = vec![100, 1 << 30, 0];
+                w.extend([blk.len() as u64; 100]);
+                w
+            }),
+            ("overflowing 2 x 2^63", vec![2, 1 << 63, 0, 5, 5]),
+        ];
+        for (what, hdr) in forged {
+            let mut payload = words(&hdr);
+            payload.extend_from_slice(&blk);
+            for (container, file) in containers(c, &payload) {
+                let e = refused(&file, "forged.vtu");
+                assert!(
+                    e.contains("compression header") || e.contains("more than the file holds"),
+                    "{c} {what} {container}: {e}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn decompression_bombs_stop_at_the_declared_size() {
+    // A header saying 12 bytes over streams that give 64 MiB: refused at byte 13.
+    let big = vec![0u8; 64 << 20];
+    for c in ["vtkZLibDataCompressor", "vtkLZMADataCompressor"] {
+        let blk = compress(c, &big);
+        let mut payload = words(&[1, 12, 12, blk.len() as u64]);
+        payload.extend_from_slice(&blk);
+        for (container, file) in containers(c, &payload) {
+            let e = refused(&file, "bomb.vtu");
+            assert!(
+                e.contains("more bytes than its header states"),
+                "{c} {container}: {e}"
+            );
+        }
+    }
+    // lz4 cannot expand a block beyond 255:1: a bigger claim is refused unread.
+    let blk = compress("vtkLZ4DataCompressor", &[0u8; 12]);
+    let mut payload = words(&[1, 12, 12, blk.len() as u64]);
+    payload.extend_from_slice(&blk);
+    let file = appended_vtu(r#"compressor="vtkLZ4DataCompressor""#, &payload, false);
+    assert!(parse_dataset(&file, Path::new("ok.vtu")).is_ok());
+}
+
+#[test]
+fn uncompressed_lengths_near_2_pow_64() {
+    for n in (0..8).map(|k| u64::MAX - k) {
+        let mut payload = n.to_le_bytes().to_vec();
+        payload.extend_from_slice(&[0; 12]);
+        for file in [
+            inline_vtu("", &payload),
+            appended_vtu("", &payload, true),
+            appended_vtu("", &payload, false),
+        ] {
+            let e = refused(&file, "len.vtu");
+            assert!(e.contains("data header says"), "{n}: {e}");
+        }
+    }
+    // An empty appended section: the header is missing, not 7236833184825028412 bytes.
+    let e = refused(&appended_vtu("", &[], false), "empty.vtu");
+    assert!(e.contains("data header is truncated"), "{e}");
+}
+
+#[test]
+fn the_reader_is_as_strict_as_vtk() {
+    let good = std::fs::read(fixture("lattice_appended-raw_none_h64.vtu")).unwrap();
+    let ascii = std::fs::read(fixture("lattice_ascii_none_h64.vtu")).unwrap();
+    let edit = |src: &[u8], from: &str, to: &str| {
+        String::from_utf8_lossy(src)
+            .replacen(from, to, 1)
+            .into_bytes()
+    };
+    let cases: Vec<(&str, Vec<u8>, &str)> =
+        vec![
+        (
+            "byte order",
+            edit(&ascii, "LittleEndian", "MiddleEndian"),
+            "unknown byte_order 'MiddleEndian'",
+        ),
+        (
+            "encoding",
+            edit(&good, r#"encoding="raw""#, r#"encoding="hex""#),
+            "unknown <AppendedData> encoding 'hex'",
+        ),
+        (
+            "UInt64 headers labelled UInt32",
+            edit(&good, r#"header_type="UInt64""#, r#"header_type="UInt32""#),
+            "header_type or an offset does not match",
+        ),
+        (
+            "unclosed tag",
+            edit(&ascii, "<DataArray", r#"<InformationKey name="x" <DataArray"#),
+            "'<' inside the <InformationKey> tag",
+        ),
+        ("trailing garbage", [ascii.clone(), b"garbage".to_vec()].concat(), "after </VTKFile>"),
+        (
+            "truncated after the point data",
+            ascii[..String::from_utf8_lossy(&ascii).rfind("</Piece>").unwrap()].to_vec(),
+            "still open",
+        ),
+        (
+            "truncated appended data",
+            good[..good.len() - 30].to_vec(),
+            "does not end with </AppendedData></VTKFile>",
+        ),
+        (
+            "no data-set element",
+            br#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0"></VTKFile>"#
+                .to_vec(),
+            "no <UnstructuredGrid> or <PolyData> element",
+        ),
+    ];
+    for (what, bytes, expect) in cases {
+        let e = refused(&bytes, "strict.vtu");
+        assert!(e.contains(expect), "{what}: {e}");
+    }
+    // A UInt8 value of 300 is out of range.
+    let u8_file = String::from_utf8_lossy(&ascii).replacen(
+        r#"<PointData>"#,
+        r#"<PointData><DataArray type="UInt8" Name="f" format="ascii">300 0 0 0 0 0 0 0</DataArray>"#,
+        1,
+    );
+    let e = refused(u8_file.as_bytes(), "u8.vtu");
+    assert!(e.contains("300 is out of range for UInt8"), "{e}");
+    // A float beyond Float32 is out of range; a literal inf or nan is a value.
+    let f = String::from_utf8_lossy(&ascii).replacen(
+        r#"<PointData>"#,
+        r#"<PointData><DataArray type="Float32" Name="g" format="ascii">1e39</DataArray>"#,
+        1,
+    );
+    assert!(refused(f.as_bytes(), "f.vtu").contains("'1e39' is out of range for Float32"));
+}
+
+#[test]
+fn legacy_errors_name_the_line() {
+    let cases: [(&[u8], &str); 5] = [
+        (
+            b"# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 2 float\n0 0 0 1 1\n",
+            "line 6: 6 values announced, the file has 10 bytes left (file truncated?)",
+        ),
+        (
+            b"# vtk DataFile Version 4.2\nx\nHEX\nDATASET POLYDATA\n",
+            "line 3: expected ASCII or BINARY, found 'HEX'",
+        ),
+        (
+            b"# vtk DataFile Version 4.2\nx\nASCII\nDATASET STRUCTURED_POINTS\n",
+            "line 4: DATASET STRUCTURED_POINTS is not particle data",
+        ),
+        (
+            b"# vtk DataFile Version 4.2\nx\nBINARY\nDATASET POLYDATA\nPOINTS 1000000000000 float\n\0\0",
+            "line 6: 3000000000000 Float32 values need 12000000000000 bytes",
+        ),
+        (
+            b"# vtk DataFile Version 4.2\nx\nASCII\nDATASET POLYDATA\nPOINTS 1 float\n0 0 0\nPOINT_DATA 1\nSCALARS s unsigned_char\nLOOKUP_TABLE default\n300\n",
+            "line 10: 300 is out of range for UInt8",
+        ),
+    ];
+    for (bytes, expect) in cases {
+        let e = refused(bytes, "legacy.vtk");
+        assert!(e.contains(expect), "{e}");
+    }
+    let full = std::fs::read(fixture("lattice_legacy42_binary.vtk")).unwrap();
+    let e = refused(&full[..full.len() / 2], "cut.vtk");
+    assert!(e.contains("truncated"), "{e}");
+}
+
+#[test]
+fn collections_name_what_is_wrong() {
+    let pvd = br#"<?xml version="1.0"?><VTKFile type="Collection"><Collection><DataSet timestep="0" file="nope.vtu"/></Collection></VTKFile>"#;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("series.pvd");
+    std::fs::write(&p, pvd).unwrap();
+    let input = fluidcast_io::Input::open(&p).unwrap();
+    let (_, file) = input.frames().remove(0);
+    let e = input.read(&file).unwrap_err().to_string();
+    assert!(
+        e.contains("nope.vtu (listed in") && e.contains("series.pvd"),
+        "{e}"
+    );
+    let e = refused(pvd, "inner.pvd");
+    assert!(e.contains("a .pvd cannot list another .pvd"), "{e}");
+    assert!(parse_collection(b"<VTKFile><Collection>", Path::new("c.pvd")).is_err());
+}
+
+#[test]
+fn devices_and_pipes_are_read_with_a_limit() {
+    if !Path::new("/dev/zero").exists() {
+        return;
+    }
+    let e = read_dataset("/dev/zero").unwrap_err().to_string();
+    assert!(e.contains("unsupported file extension"), "{e}");
+    let e = fluidcast_io::read_file(Path::new("/dev/zero"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not a regular file and longer than 256 MiB"),
+        "{e}"
+    );
+}
