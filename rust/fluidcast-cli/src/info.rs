@@ -75,7 +75,12 @@ pub fn run(a: InfoArgs) -> Result<()> {
     if let Some((lo, hi)) = ds.bounds() {
         out!(
             "bounds: x [{:.6}, {:.6}]  y [{:.6}, {:.6}]  z [{:.6}, {:.6}] (world units)",
-            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+            lo[0],
+            hi[0],
+            lo[1],
+            hi[1],
+            lo[2],
+            hi[2]
         );
     }
     out!("point data:");

@@ -82,7 +82,13 @@ mod tests {
     #[test]
     fn csv_rows_must_have_three_numbers() {
         assert_eq!(parse_points("x,y,z\n1,2,3\n\n4, 5 ,6\n").unwrap().len(), 2);
-        for bad in ["1,2\n", "1,2,3,4\n", "0,0,0\nx,y,z\n", "1,nan,2\n", "x,y,z\n"] {
+        for bad in [
+            "1,2\n",
+            "1,2,3,4\n",
+            "0,0,0\nx,y,z\n",
+            "1,nan,2\n",
+            "x,y,z\n",
+        ] {
             assert!(parse_points(bad).is_err(), "{bad:?}");
         }
         let e = parse_points("0,0,0\n1,2\n").unwrap_err().to_string();

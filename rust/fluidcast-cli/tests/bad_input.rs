@@ -281,3 +281,276 @@ fn stats_and_compare() {
     assert_eq!(c["max_abs"], 0.0);
     assert!(c["rmse"].is_number() && c["frac_above"].is_number());
 }
+
+/// Runs the CLI under an address-space limit (as a user's `ulimit -v` would), through sh.
+fn run_limited(limit_kib: u64, args: &[&str]) -> (i32, String) {
+    let quoted: Vec<String> = args.iter().map(|a| format!("'{a}'")).collect();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {limit_kib}; exec '{}' {}",
+            env!("CARGO_BIN_EXE_fluidcast"),
+            quoted.join(" ")
+        ))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert!(!err.contains("memory allocation"), "abort: {err}");
+    (o.status.code().unwrap_or(-1), err)
+}
+
+fn lattice(n: usize, extra: &[[f64; 3]]) -> String {
+    let mut pts: Vec<[f64; 3]> = (0..n * n * n)
+        .map(|i| {
+            [
+                (i % n) as f64 * 0.1,
+                (i / n % n) as f64 * 0.1,
+                (i / n / n) as f64 * 0.1,
+            ]
+        })
+        .collect();
+    pts.extend_from_slice(extra);
+    let text: Vec<String> = pts
+        .iter()
+        .map(|p| format!("{} {} {}", p[0], p[1], p[2]))
+        .collect();
+    ascii_vtu(&text.join(" "), pts.len(), "")
+}
+
+#[test]
+fn huge_images_are_refused_before_allocating() {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let (o, s) = (out.to_str().unwrap(), sample.to_str().unwrap());
+    // 16384x8192 passes the size check but needs more than the 4 GiB a user allows.
+    let (code, err) = run_limited(4 << 20, &["render", s, "-o", o, "--size", "16384x8192"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("a 16384x8192 render needs") && err.contains("GiB"),
+        "{err}"
+    );
+    // 4096x4096 fits the image but not the grid's particle–cell pairs in 2 GiB.
+    let (code, err) = run_limited(
+        2 << 20,
+        &[
+            "render",
+            s,
+            "-o",
+            o,
+            "--size",
+            "4096x4096",
+            "--array",
+            "velocity",
+        ],
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("particle–cell pairs") && err.contains("address-space limit"),
+        "{err}"
+    );
+}
+
+#[test]
+fn forged_png_header_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // A valid PNG signature and IHDR claiming 100000 x 100000 RGBA, with no pixel data.
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend(100000u32.to_be_bytes());
+    ihdr.extend(100000u32.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    png.extend(13u32.to_be_bytes());
+    png.extend(&ihdr);
+    png.extend(crc32(&ihdr).to_be_bytes());
+    // An IDAT chunk holding an empty zlib stream, and IEND.
+    for (kind, data) in [
+        (
+            &b"IDAT"[..],
+            &[0x78, 0x9C, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01][..],
+        ),
+        (b"IEND", &[]),
+    ] {
+        let chunk = [kind, data].concat();
+        png.extend((data.len() as u32).to_be_bytes());
+        png.extend(&chunk);
+        png.extend(crc32(&chunk).to_be_bytes());
+    }
+    let p = write(dir.path(), "huge.png", &png);
+    let (code, err) = run_limited(
+        4 << 20,
+        &["compare", p.to_str().unwrap(), p.to_str().unwrap()],
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("huge.png") && err.contains("100000x100000"),
+        "{err}"
+    );
+}
+
+/// CRC-32 (ISO 3309), as PNG chunks carry it.
+fn crc32(b: &[u8]) -> u32 {
+    let mut c = 0xFFFF_FFFFu32;
+    for &x in b {
+        c ^= x as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                0xEDB8_8320 ^ (c >> 1)
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+#[test]
+fn far_outliers_render_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    for y in [-1e14, 1e15, 1e30] {
+        let p = write(
+            dir.path(),
+            "outlier.vtu",
+            lattice(4, &[[0.0, y, 0.0]]).as_bytes(),
+        );
+        for tol in ["0.004", "off"] {
+            let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+                .args([
+                    "render",
+                    p.to_str().unwrap(),
+                    "-o",
+                    out.to_str().unwrap(),
+                    "--size",
+                    "32x24",
+                    "--error-tolerance",
+                    tol,
+                ])
+                .output()
+                .unwrap();
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(o.status.success(), "y = {y}, {tol}: {err}");
+            assert!(
+                err.contains("warning: 1 of 65 particles lie far outside the rest"),
+                "{err}"
+            );
+            // The spacing ignores the outlier: H = 2 × 0.1.
+            assert!(err.contains("using 0.200000"), "{err}");
+        }
+    }
+    let p = write(
+        dir.path(),
+        "two.vtu",
+        ascii_vtu("0 0 0 1e30 0 0", 2, "").as_bytes(),
+    );
+    let err = render_err(&p, &[]);
+    assert!(
+        err.contains("no measurable spacing") && err.contains("1.000e30"),
+        "{err}"
+    );
+}
+
+#[test]
+fn values_beyond_single_precision_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let big = (0..2).map(|_| "1e39").collect::<Vec<_>>().join(" ");
+    let p = write(
+        dir.path(),
+        "big.vtu",
+        ascii_vtu(
+            "0 0 0 0.1 0 0",
+            2,
+            &format!(r#"<DataArray type="Float64" Name="q" format="ascii">{big}</DataArray>"#),
+        )
+        .as_bytes(),
+    );
+    let err = render_err(&p, &["--array", "q", "--support-radius", "0.2"]);
+    assert!(
+        err.contains("value of particle 0 is 1e39, outside single precision"),
+        "{err}"
+    );
+    let err = render_err(&p, &["--support-radius", "1e-40"]);
+    assert!(
+        err.contains("support radius of particle 0 is 1e-40"),
+        "{err}"
+    );
+}
+
+#[test]
+fn output_and_option_mistakes_are_errors() {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let err = render_err(&sample, &["--background", "nan,0,0"]);
+    assert!(err.contains("--background 'nan,0,0'"), "{err}");
+    let err = render_err(&sample, &["--background", "2,2,2"]);
+    assert!(err.contains("--background '2,2,2'"), "{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let pat = dir.path().join("x_%99999999d.png");
+    let (ok, err) = run(&[
+        "render",
+        sample.to_str().unwrap(),
+        "-o",
+        pat.to_str().unwrap(),
+        "--size",
+        "8x8",
+    ]);
+    assert!(
+        !ok && err.contains("a field width of 99999999 digits"),
+        "{err}"
+    );
+    // Camera errors say their text once.
+    let cam = write(
+        dir.path(),
+        "cam.json",
+        br#"{"position":[0,0,1],"focal_point":[0,0,0]}"#,
+    );
+    let err = render_err(&sample, &["--camera", cam.to_str().unwrap()]);
+    assert_eq!(err.matches("missing field `view_up`").count(), 1, "{err}");
+    // probe: every row has three numbers.
+    let pts = write(dir.path(), "p.csv", b"x,y,z\n0,0,0\n1,2\n");
+    let (ok, err) = run(&[
+        "probe",
+        sample.to_str().unwrap(),
+        "--points",
+        pts.to_str().unwrap(),
+        "-o",
+        dir.path().join("o.csv").to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("p.csv: line 3"), "{err}");
+}
+
+#[test]
+fn closed_pipes_and_full_disks() {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let s = sample.to_str().unwrap();
+    // The reader goes away: a quiet, successful end, as `cat F | true` has.
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "'{}' info '{s}' | true; echo \"rc=${{PIPESTATUS:-$?}}\"",
+            env!("CARGO_BIN_EXE_fluidcast")
+        ))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.is_empty(), "{err}");
+    if Path::new("/dev/full").exists() {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "exec '{}' info '{s}' > /dev/full",
+                env!("CARGO_BIN_EXE_fluidcast")
+            ))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains("writing to standard output: No space left on device"),
+            "{err}"
+        );
+    }
+}

@@ -145,7 +145,11 @@ fn edit_number(b: &mut Vec<u8>, rng: &mut Rng) {
     let i = start + off;
     let len = b
         .get(i..)
-        .map(|s| s.iter().take_while(|c| c.is_ascii_digit() || **c == b'.').count())
+        .map(|s| {
+            s.iter()
+                .take_while(|c| c.is_ascii_digit() || **c == b'.')
+                .count()
+        })
         .unwrap_or(0);
     let num = EDGE_NUMBERS[rng.below(EDGE_NUMBERS.len())];
     b.splice(i..i + len, num.bytes());
@@ -227,7 +231,11 @@ pub fn render_small(ds: &fluidcast_io::Dataset) -> Result<(), String> {
     cam.reset(lo.map(f64::from), hi.map(f64::from));
     let (vlo, vhi) = p.value_range();
     let (vlo, vhi) = (f64::from(vlo), f64::from(vhi));
-    let (vlo, vhi) = if vlo < vhi { (vlo, vhi) } else { (vlo - 0.5, vlo + 0.5) };
+    let (vlo, vhi) = if vlo < vhi {
+        (vlo, vhi)
+    } else {
+        (vlo - 0.5, vlo + 0.5)
+    };
     let mut tf = TransferFunction::preset("Viridis")
         .and_then(|t| t.with_range(vlo, vhi))
         .map_err(|e| e.to_string())?;

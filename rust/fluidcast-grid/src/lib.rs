@@ -468,7 +468,12 @@ impl PerspectiveGrid {
         // view's particle–cell pairs would not fit.
         let pairs = offsets[nb] as u64;
         fluidcast_mem::check(
-            || format!("the perspective grid's {pairs} particle–cell pairs at {}x{}", frame.width, frame.height),
+            || {
+                format!(
+                    "the perspective grid's {pairs} particle–cell pairs at {}x{}",
+                    frame.width, frame.height
+                )
+            },
             pairs.saturating_mul(PAIR_BYTES),
         )?;
         let mut keys = vec![0u64; offsets[nb]];

@@ -178,7 +178,13 @@ impl Image {
 const MAX_COMPRESSION_RATIO: u64 = 1100;
 
 /// Refuses a decoded size the file cannot hold or the machine cannot give.
-fn check_claimed_size(path: &Path, file_len: usize, w: u64, h: u64, decoded: u64) -> Result<(), ImageError> {
+fn check_claimed_size(
+    path: &Path,
+    file_len: usize,
+    w: u64,
+    h: u64,
+    decoded: u64,
+) -> Result<(), ImageError> {
     let bound = (file_len as u64).saturating_mul(MAX_COMPRESSION_RATIO);
     if decoded > bound {
         return Err(ferr(
@@ -199,7 +205,13 @@ fn decode_png(bytes: &[u8], path: &Path) -> Result<Image, ImageError> {
     dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
     let mut r = dec.read_info().map_err(|e| ferr(path, e))?;
     let (w, h) = r.info().size();
-    check_claimed_size(path, bytes.len(), w.into(), h.into(), r.output_buffer_size() as u64)?;
+    check_claimed_size(
+        path,
+        bytes.len(),
+        w.into(),
+        h.into(),
+        r.output_buffer_size() as u64,
+    )?;
     let mut buf = vec![0; r.output_buffer_size()];
     let info = r.next_frame(&mut buf).map_err(|e| ferr(path, e))?;
     let nc = info.color_type.samples();

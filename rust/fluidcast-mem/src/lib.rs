@@ -91,7 +91,10 @@ fn proc_value(text: &str, key: &str) -> Option<u64> {
 fn address_space_limit() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/self/limits").ok()?;
     let line = text.lines().find(|l| l.starts_with("Max address space"))?;
-    let soft = line.get("Max address space".len()..)?.split_whitespace().next()?;
+    let soft = line
+        .get("Max address space".len()..)?
+        .split_whitespace()
+        .next()?;
     soft.parse().ok()
 }
 
@@ -109,14 +112,20 @@ pub fn budget() -> Option<(u64, &'static str)> {
         take(parse_size(&s), "FLUIDCAST_MEMORY_LIMIT");
     }
     if let Ok(m) = std::fs::read_to_string("/proc/meminfo") {
-        take(proc_value(&m, "MemAvailable:"), "memory available on this machine");
+        take(
+            proc_value(&m, "MemAvailable:"),
+            "memory available on this machine",
+        );
     }
     if let Some(limit) = address_space_limit() {
         let used = std::fs::read_to_string("/proc/self/status")
             .ok()
             .and_then(|s| proc_value(&s, "VmSize:"))
             .unwrap_or(0);
-        take(Some(limit.saturating_sub(used)), "address-space limit, ulimit -v");
+        take(
+            Some(limit.saturating_sub(used)),
+            "address-space limit, ulimit -v",
+        );
     }
     best
 }

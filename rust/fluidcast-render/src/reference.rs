@@ -60,7 +60,10 @@ pub fn render_reference(
     let refs: u64 = rects
         .iter()
         .flatten()
-        .map(|r| u64::from((r[1] - 1) / TILE - r[0] / TILE + 1) * u64::from((r[3] - 1) / TILE - r[2] / TILE + 1))
+        .map(|r| {
+            u64::from((r[1] - 1) / TILE - r[0] / TILE + 1)
+                * u64::from((r[3] - 1) / TILE - r[2] / TILE + 1)
+        })
         .sum();
     fluidcast_mem::check(
         || format!("binning {refs} particle–tile references at {w}x{h}"),

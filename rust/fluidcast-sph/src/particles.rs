@@ -375,20 +375,21 @@ impl Particles {
                     vec![h; n]
                 }
                 None => {
-                    let h = suggest_support_radius(&ds.points).ok_or_else(|| ParticleError::Other {
-                        file: file.clone(),
-                        message: format!(
-                            "cannot suggest a support radius: {} finite points with no \
+                    let h =
+                        suggest_support_radius(&ds.points).ok_or_else(|| ParticleError::Other {
+                            file: file.clone(),
+                            message: format!(
+                                "cannot suggest a support radius: {} finite points with no \
                              measurable spacing between neighbours{}: give --support-radius",
-                            keep.len(),
-                            ds.bounds()
-                                .map(|(lo, hi)| format!(
-                                    ", spread over {:.3e} world units",
-                                    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
-                                ))
-                                .unwrap_or_default()
-                        ),
-                    })?;
+                                keep.len(),
+                                ds.bounds()
+                                    .map(|(lo, hi)| format!(
+                                        ", spread over {:.3e} world units",
+                                        (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+                                    ))
+                                    .unwrap_or_default()
+                            ),
+                        })?;
                     notes.push(format!(
                         "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
                     ));
@@ -528,5 +529,55 @@ impl Particles {
         } else {
             r
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lattice(n: usize) -> Vec<[f64; 3]> {
+        (0..n * n * n)
+            .map(|i| {
+                [
+                    (i % n) as f64 * 0.1,
+                    (i / n % n) as f64 * 0.1,
+                    (i / n / n) as f64 * 0.1,
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn far_outliers_are_found_and_spray_is_not() {
+        let mut pts = lattice(4);
+        assert!(far_outliers(&pts).is_empty());
+        // Spray: droplets a few body lengths away are data, not outliers.
+        pts.push([0.0, 3.0, 0.0]);
+        pts.push([-2.0, 0.0, 5.0]);
+        assert!(far_outliers(&pts).is_empty());
+        pts.push([0.0, -1e14, 0.0]);
+        pts.push([f64::NAN, 0.0, 0.0]);
+        assert_eq!(far_outliers(&pts), vec![66]);
+        // The spacing estimate ignores the outlier (0.1, not 10^13).
+        let s = mean_spacing(&pts).unwrap();
+        assert!((s - 0.1).abs() < 0.02, "{s}");
+        // Planar data (zero spread in z) is judged by its widest axis.
+        let flat: Vec<[f64; 3]> = lattice(4).iter().map(|p| [p[0], p[1], 0.0]).collect();
+        assert!(far_outliers(&flat).is_empty());
+    }
+
+    #[test]
+    fn single_precision_limits() {
+        let f = Path::new("f.vtu");
+        assert!(single_precision(f, 0, &[("volume", 1e-30), ("support radius", 1e30)]).is_ok());
+        assert!(single_precision(f, 0, &[("volume", 1e39)]).is_err());
+        assert!(single_precision(f, 3, &[("support radius", 1e-40)])
+            .unwrap_err()
+            .to_string()
+            .contains("support radius of particle 3 is 1e-40"));
+        assert!(single_precision(f, 0, &[("value", 1e39)]).is_err());
+        // Small values and masses may round to zero; they are not divided by.
+        assert!(single_precision(f, 0, &[("value", 1e-50), ("mass", 1e-50)]).is_ok());
     }
 }

@@ -76,7 +76,10 @@ fn watchdog(started_ms: Arc<AtomicU64>, out: PathBuf) {
         let now = t0.elapsed().as_millis() as u64;
         if s != u64::MAX && now.saturating_sub(s) > HANG.as_millis() as u64 {
             let _ = std::fs::copy(out.join("current.bin"), out.join("hang.bin"));
-            eprintln!("HANG: an input ran longer than {HANG:?}; saved as {}", out.join("hang.bin").display());
+            eprintln!(
+                "HANG: an input ran longer than {HANG:?}; saved as {}",
+                out.join("hang.bin").display()
+            );
             std::process::exit(3);
         }
     });
@@ -101,7 +104,9 @@ fn run() -> Result<u64, String> {
     let mut last_report = Instant::now();
     let current = a.out.join("current.bin");
     for i in 0..a.inputs {
-        let Some((path, seed)) = corpus.get(rng.below(corpus.len())) else { break };
+        let Some((path, seed)) = corpus.get(rng.below(corpus.len())) else {
+            break;
+        };
         let ext = parses_as(path).unwrap_or("vtu");
         let input = mutate(seed, &mut rng);
         std::fs::write(&current, &input).map_err(|e| format!("{}: {e}", current.display()))?;
@@ -114,7 +119,12 @@ fn run() -> Result<u64, String> {
                 findings += 1;
                 let p = a.out.join(format!("panic-{findings}.{ext}"));
                 let _ = std::fs::write(&p, &input);
-                println!("PANIC on a mutant of {}: {} (saved as {})", path.display(), f.message, p.display());
+                println!(
+                    "PANIC on a mutant of {}: {} (saved as {})",
+                    path.display(),
+                    f.message,
+                    p.display()
+                );
             }
         }
         started.store(u64::MAX, Ordering::Relaxed);
