@@ -267,3 +267,29 @@ pub fn seeds(dir: &Path) -> std::io::Result<Vec<(PathBuf, Vec<u8>)>> {
     out.sort_by(|a, b| a.0.cmp(&b.0));
     Ok(out)
 }
+
+/// Small PNG and EXR seeds (a 6x4 gradient with depth and one AOV), written by fluidcast's
+/// own image writer into a scratch folder and read back as bytes, so that no image needs
+/// to live in the repository.
+pub fn image_seeds() -> std::io::Result<Vec<(PathBuf, Vec<u8>)>> {
+    let mut img = fluidcast_image::Image::new(6, 4);
+    for (k, p) in img.rgba.iter_mut().enumerate() {
+        let t = k as f32 / 24.0;
+        *p = [t, 0.5 * t, 1.0 - t, 0.25 + 0.5 * t];
+    }
+    for (k, z) in img.depth.iter_mut().enumerate() {
+        *z = if k % 5 == 0 { f32::INFINITY } else { k as f32 };
+    }
+    img.aovs.push(("level".into(), vec![1.0; 24]));
+    let dir = std::env::temp_dir().join(format!("fluidcast-fuzz-seeds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let mut out = Vec::new();
+    for name in ["seed.png", "seed.exr"] {
+        let p = dir.join(name);
+        img.save(&p, [1.0, 1.0, 1.0], fluidcast_image::PngEncoding::Vtk)
+            .map_err(std::io::Error::other)?;
+        out.push((PathBuf::from(name), std::fs::read(&p)?));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(out)
+}

@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use fluidcast_fuzz::{mutate, parses_as, run_input, seeds, Outcome, Rng};
+use fluidcast_fuzz::{image_seeds, mutate, parses_as, run_input, seeds, Outcome, Rng};
 
 /// An input taking longer than this counts as a hang.
 const HANG: Duration = Duration::from_secs(10);
@@ -88,13 +88,20 @@ fn watchdog(started_ms: Arc<AtomicU64>, out: PathBuf) {
 fn run() -> Result<u64, String> {
     let a = parse_args()?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
-    let mut corpus = Vec::new();
+    let mut corpus = image_seeds().map_err(|e| format!("writing the image seeds: {e}"))?;
     for d in &a.dirs {
         corpus.extend(seeds(d).map_err(|e| format!("{}: {e}", d.display()))?);
     }
-    if corpus.is_empty() {
+    if corpus.len() <= 2 {
         return Err("no seed files (.vtu .vtp .vtk .pvd .png .exr) in the given folders".into());
     }
+    println!(
+        "{} seeds; up to {} inputs, seed {}, every {}th input that parses is also rendered",
+        corpus.len(),
+        a.inputs,
+        a.seed,
+        a.render_every
+    );
     std::panic::set_hook(Box::new(|_| {})); // panics are counted, not printed
     let started = Arc::new(AtomicU64::new(u64::MAX));
     watchdog(started.clone(), a.out.clone());

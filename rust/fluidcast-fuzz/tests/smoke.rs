@@ -1,0 +1,48 @@
+//! The fuzzer's smoke run, part of every test run: 20,000 mutated inputs from every seed
+//! (the VTK fixtures in all encodings, legacy files, a .pvd, PNG and EXR), one in 20 that
+//! parses also rendered, through the `fluidcast-fuzz` runner under a 4 GiB address-space
+//! limit. A panic, an abort (an allocation a header merely claims), or an input running
+//! longer than 10 s fails it. Long runs: `scripts/fuzz.sh`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+
+use std::path::PathBuf;
+use std::process::Command;
+
+#[test]
+fn twenty_thousand_mutants_without_a_crash() {
+    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures");
+    let out = tempfile::tempdir().unwrap();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 4194304; exec '{}' --inputs 20000 --seed 7 --render-every 20 --out '{}' '{}'",
+            env!("CARGO_BIN_EXE_fluidcast-fuzz"),
+            out.path().display(),
+            fixtures.display()
+        ))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    println!("{text}");
+    assert_eq!(o.status.code(), Some(0), "fuzz smoke run failed:\n{text}");
+    assert!(
+        text.contains("20000 inputs in") && text.contains(", 0 findings"),
+        "{text}"
+    );
+    // Both outcomes occur: the mutants reach past the first checks, and most are refused.
+    let last = text
+        .lines()
+        .rev()
+        .find(|l| l.contains("inputs in"))
+        .unwrap();
+    let accepted: u64 = last
+        .split(": ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(accepted > 500 && accepted < 19_000, "{last}");
+}
