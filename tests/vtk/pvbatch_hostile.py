@@ -1,0 +1,154 @@
+"""pvbatch test: hostile data never crashes ParaView through the fluidcast representation.
+
+    pvbatch pvbatch_hostile.py PLUGIN.so OUTDIR
+
+Shows each case with the "fluidcast" representation and renders it: damaged files (truncated,
+garbage after the end, no points; ParaView's own reader meets these first, and the
+representation then gets no or partial data. A forged compression header is left out:
+ParaView 5.11's own vtkXMLDataParser aborts on it with std::bad_alloc before any
+representation runs, whatever the representation) and data that ParaView reads but that
+challenges fluidcast (a far outlier, coordinates near the float limit, all-NaN points, a
+zero or NaN radius array, values beyond single precision, two points 1e30 apart, no points).
+Every case must come back from Render() and SaveScreenshot(): a Rust panic or an abort kills
+the process, so reaching the end is the test. Cases that fluidcast refuses must report a VTK
+error (vtkFluidCastVolumeMapper's message), counted through VTK's output window.
+Exit code 0 pass, 1 fail.
+"""
+import faulthandler
+import os
+import sys
+
+faulthandler.enable(file=sys.__stderr__)
+
+import numpy as np
+from paraview.simple import (ColorBy, CreateView, Delete, GetOpacityTransferFunction,
+                             LoadPlugin, OpenDataFile, PVTrivialProducer, Render,
+                             SaveScreenshot, Show, Hide)
+from vtkmodules.util.numpy_support import numpy_to_vtk
+from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+from vtkmodules.vtkCommonDataModel import vtkPolyData
+from vtkmodules.vtkCommonCore import vtkPoints
+
+plugin, out = sys.argv[1:3]
+os.makedirs(out, exist_ok=True)
+LoadPlugin(plugin, remote=False, ns=globals())
+
+# Count VTK's error messages; ParaView's own output window is put back before exiting
+# (destroying a Python-owned instance at shutdown would crash pvbatch).
+original_window = vtkOutputWindow.GetInstance()
+messages = vtkStringOutputWindow()
+vtkOutputWindow.SetInstance(messages)
+
+
+def polydata(pts, arrays):
+    pd = vtkPolyData()
+    p = vtkPoints()
+    p.SetData(numpy_to_vtk(np.ascontiguousarray(pts, dtype=np.float64), deep=True))
+    pd.SetPoints(p)
+    for name, values in arrays.items():
+        a = numpy_to_vtk(np.ascontiguousarray(values, dtype=np.float64), deep=True)
+        a.SetName(name)
+        pd.GetPointData().AddArray(a)
+    return pd
+
+
+lattice = np.stack(np.meshgrid(*[np.arange(4) * 0.1] * 3, indexing="ij"), -1).reshape(-1, 3)
+ones = np.ones(len(lattice))
+
+
+def with_point(p):
+    return np.vstack([lattice, [p]])
+
+
+# (name, data, expect a VTK error, extra representation settings)
+in_memory = [
+    ("far_outlier", polydata(with_point([0, -1e14, 0]), {"q": np.ones(65)}), False, {}),
+    ("near_float_max", polydata(with_point([3e38, 0, 0]), {"q": np.ones(65)}), False, {}),
+    # ParaView draws nothing for data without finite bounds: no mapper call, no error.
+    ("all_nan", polydata(np.full((8, 3), np.nan), {"q": np.ones(8)}), False, {}),
+    ("zero_radius", polydata(lattice, {"q": ones, "h": np.zeros(64)}), True,
+     {"FluidCastRadiusArray": "h"}),
+    ("nan_radius", polydata(lattice, {"q": ones, "h": np.full(64, np.nan)}), True,
+     {"FluidCastRadiusArray": "h"}),
+    ("value_beyond_f32", polydata(lattice, {"q": np.full(64, 1e39)}), True, {}),
+    ("two_points_1e30_apart", polydata([[0, 0, 0], [1e30, 0, 0]], {"q": [1.0, 2.0]}), True, {}),
+]
+
+
+def damaged_files():
+    """Writes damaged .vtu files; returns [(name, path)]."""
+    head = ('<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" '
+            'byte_order="LittleEndian" header_type="UInt64"{c}><UnstructuredGrid>'
+            '<Piece NumberOfPoints="{n}" NumberOfCells="0"><PointData Scalars="q">'
+            '<DataArray type="Float64" Name="q" format="ascii">{q}</DataArray></PointData>'
+            '<Points><DataArray type="Float32" NumberOfComponents="3" format="{f}">{p}'
+            '</DataArray></Points><Cells><DataArray type="Int64" Name="connectivity"/>'
+            '<DataArray type="Int64" Name="offsets"/><DataArray type="UInt8" Name="types"/>'
+            '</Cells></Piece></UnstructuredGrid></VTKFile>\n')
+    pts = " ".join(f"{x:g}" for x in lattice.ravel())
+    q = " ".join("1" for _ in range(64))
+    good = head.format(c="", n=64, q=q, f="ascii", p=pts)
+    cases = {
+        "truncated": good[: len(good) * 2 // 3],
+        "garbage_after_end": good + "garbage",
+        "no_points": head.format(c="", n=0, q="", f="ascii", p=""),
+    }
+    paths = []
+    for name, text in cases.items():
+        path = os.path.join(out, name + ".vtu")
+        with open(path, "w") as f:
+            f.write(text)
+        paths.append((name, path))
+    return paths
+
+
+view = CreateView("RenderView")
+view.ViewSize = [64, 48]
+view.OrientationAxesVisibility = 0
+
+
+def say(text):
+    """Progress on the real stderr: pvbatch's captured stdout is lost if the process dies."""
+    sys.__stderr__.write(text + "\n")
+    sys.__stderr__.flush()
+
+
+def show(source, name, settings):
+    say(f"case {name}")
+    display = Show(source, view)
+    display.SetRepresentationType("fluidcast")
+    if source.PointData.keys():
+        ColorBy(display, ("POINTS", "q"))
+        display.ScalarOpacityFunction = GetOpacityTransferFunction("q")
+    for k, v in settings.items():
+        setattr(display, k, v)
+    view.ResetCamera()
+    Render(view)
+    SaveScreenshot(os.path.join(out, name + ".png"), view, ImageResolution=[64, 48])
+    Hide(source, view)
+    Delete(source)
+
+
+failures = []
+for name, data, expect_error, settings in in_memory:
+    before = len(messages.GetOutput())
+    src = PVTrivialProducer()
+    src.GetClientSideObject().SetOutput(data)
+    show(src, name, settings)
+    text = messages.GetOutput()[before:]
+    got_error = "vtkFluidCastVolumeMapper" in text and "ERROR" in text
+    say(f"{name}: {'VTK error' if got_error else 'rendered'}")
+    if expect_error and not got_error:
+        failures.append(f"{name}: expected a VTK error from the fluidcast mapper")
+
+for name, path in damaged_files():
+    reader = OpenDataFile(path)
+    show(reader, name, {})
+    say(f"{name}: survived")
+
+say(f"survived {len(in_memory)} in-memory cases and 3 damaged files")
+vtkOutputWindow.SetInstance(original_window)
+if failures:
+    say("FAIL:\n  " + "\n  ".join(failures))
+    sys.exit(1)
+say("PASS")
