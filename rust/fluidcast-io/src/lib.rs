@@ -9,8 +9,13 @@
 //!   raw data, zlib arrays with a full last block, multi-block lzma arrays and compressed
 //!   `.vtp` files (see `tests/vtkio_faults.rs`).
 //! * `.pvd` collections ([`read_collection`]), each data set with its `timestep`.
-//! * Legacy `.vtk` 4.x and 5.1 (ascii and big-endian binary) through vtkio; a panic inside
-//!   vtkio is caught and reported as an error naming the file.
+//! * Legacy `.vtk` 2.0 to 5.1 (ascii and big-endian binary) by our own parser (module `legacy`),
+//!   whose errors name the line.
+//!
+//! Damaged or hostile files are errors naming the file, never panics or allocations of what
+//! a header claims: binary sizes are checked against the XML and the file before allocating
+//! (module `payload`), and whole files are read only when they fit the memory budget
+//! ([`fluidcast_mem`]).
 //!
 //! Only the points, the point data and the field data are kept: cells are irrelevant for
 //! mesh-free particles (every point is a particle, whatever cells reference it).
