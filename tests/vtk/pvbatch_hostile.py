@@ -3,10 +3,11 @@
     pvbatch pvbatch_hostile.py PLUGIN.so OUTDIR
 
 Shows each case with the "fluidcast" representation and renders it: damaged files (truncated,
-garbage after the end, no points; ParaView's own reader meets these first, and the
-representation then gets no or partial data. A forged compression header is left out:
-ParaView 5.11's own vtkXMLDataParser aborts on it with std::bad_alloc before any
-representation runs, whatever the representation) and data that ParaView reads but that
+garbage after the end, no points, a forged compression header) read by ParaView's own reader
+and by the plugin's "fluidcast particle reader" (vtkFluidCastReader, which must report each
+as a VTK error; ParaView 5.11's own vtkXMLDataParser aborts with std::bad_alloc on the forged
+header, so that file goes through fluidcast's reader only), and a good file, which
+fluidcast's reader must read exactly as ParaView's does and data that ParaView reads but that
 challenges fluidcast (a far outlier, coordinates near the float limit, all-NaN points, a
 zero or NaN radius array, values beyond single precision, two points 1e30 apart, no points).
 Every case must come back from Render() and SaveScreenshot(): a Rust panic or an abort kills
@@ -16,14 +17,17 @@ Exit code 0 pass, 1 fail.
 """
 import faulthandler
 import os
+import base64
+import struct
 import sys
+import zlib
 
 faulthandler.enable(file=sys.__stderr__)
 
 import numpy as np
 from paraview.simple import (ColorBy, CreateView, Delete, GetOpacityTransferFunction,
                              LoadPlugin, OpenDataFile, PVTrivialProducer, Render,
-                             SaveScreenshot, Show, Hide)
+                             SaveScreenshot, Show, Hide, servermanager)
 from vtkmodules.util.numpy_support import numpy_to_vtk
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkPolyData
@@ -88,10 +92,13 @@ def damaged_files():
     pts = " ".join(f"{x:g}" for x in lattice.ravel())
     q = " ".join("1" for _ in range(64))
     good = head.format(c="", n=64, q=q, f="ascii", p=pts)
+    forged = struct.pack("<QQQQ", 1, 1 << 40, 1 << 40, 12) + zlib.compress(b"\0" * 12)
     cases = {
         "truncated": good[: len(good) * 2 // 3],
         "garbage_after_end": good + "garbage",
         "no_points": head.format(c="", n=0, q="", f="ascii", p=""),
+        "forged_block_header": head.format(c=' compressor="vtkZLibDataCompressor"', n=64, q=q,
+                                           f="binary", p=base64.b64encode(forged).decode()),
     }
     paths = []
     for name, text in cases.items():
@@ -105,6 +112,11 @@ def damaged_files():
 view = CreateView("RenderView")
 view.ViewSize = [64, 48]
 view.OrientationAxesVisibility = 0
+
+
+def fetch(source):
+    source.UpdatePipeline()
+    return servermanager.Fetch(source)
 
 
 def say(text):
@@ -141,12 +153,46 @@ for name, data, expect_error, settings in in_memory:
     if expect_error and not got_error:
         failures.append(f"{name}: expected a VTK error from the fluidcast mapper")
 
-for name, path in damaged_files():
-    reader = OpenDataFile(path)
-    show(reader, name, {})
-    say(f"{name}: survived")
+damaged = damaged_files()
+for name, path in damaged:
+    if name == "forged_block_header":
+        continue  # ParaView's own XML reader aborts on it (std::bad_alloc): fluidcast's only
+    show(OpenDataFile(path), name, {})
+    say(f"{name}: survived ParaView's reader")
 
-say(f"survived {len(in_memory)} in-memory cases and 3 damaged files")
+# fluidcast's checked reader (the plugin's "fluidcast particle reader"): every damaged file
+# is a VTK error naming the problem, the forged header included.
+for name, path in damaged:
+    before = len(messages.GetOutput())
+    show(fluidcastparticlereader(FileName=path), name + "_fluidcast_reader", {})
+    text = messages.GetOutput()[before:]
+    refused = "vtkFluidCastReader" in text and name + ".vtu" in text
+    say(f"{name} through the fluidcast reader: {'VTK error' if refused else 'read'}")
+    if name != "no_points" and not refused:
+        failures.append(f"{name}: the fluidcast reader reported no error")
+
+# And it reads a good file as ParaView's own reader does.
+sample = os.path.join(os.path.dirname(__file__), "..", "..", "examples", "data",
+                      "sample_column.vtu")
+ours = fetch(fluidcastparticlereader(FileName=sample))
+theirs = fetch(OpenDataFile(sample))
+if ours.GetNumberOfPoints() != theirs.GetNumberOfPoints():
+    failures.append(f"sample: {ours.GetNumberOfPoints()} points vs ParaView's "
+                    f"{theirs.GetNumberOfPoints()}")
+for i in range(theirs.GetPointData().GetNumberOfArrays()):
+    a = theirs.GetPointData().GetArray(i)
+    b = ours.GetPointData().GetArray(a.GetName())
+    if b is None or b.GetNumberOfComponents() != a.GetNumberOfComponents():
+        failures.append(f"sample: array {a.GetName()} missing or of another shape")
+        continue
+    diff = max(abs(a.GetComponent(t, c) - b.GetComponent(t, c))
+               for t in range(a.GetNumberOfTuples()) for c in range(a.GetNumberOfComponents()))
+    if diff != 0:
+        failures.append(f"sample: array {a.GetName()} differs by {diff}")
+say(f"sample through the fluidcast reader: {ours.GetNumberOfPoints()} points, "
+    f"{ours.GetPointData().GetNumberOfArrays()} arrays, as ParaView's reader")
+
+say(f"survived {len(in_memory)} in-memory cases and {len(damaged)} damaged files")
 vtkOutputWindow.SetInstance(original_window)
 if failures:
     say("FAIL:\n  " + "\n  ".join(failures))

@@ -79,6 +79,23 @@ mod ffi {
     }
 
     extern "Rust" {
+        /// A particle file read by fluidcast's checked reader (`vtkFluidCastReader`).
+        type ParticleFile;
+
+        /// Reads a `.vtu`, `.vtp` or legacy `.vtk` file with every check of `fluidcast
+        /// info`; the error names the file and the problem.
+        fn read_particle_file(path: &str) -> Result<Box<ParticleFile>>;
+        /// Point coordinates, x y z per point (world space).
+        fn points(self: &ParticleFile) -> &[f64];
+        /// Number of point-data (`field_data` false) or field-data arrays.
+        fn array_count(self: &ParticleFile, field_data: bool) -> usize;
+        fn array_name(self: &ParticleFile, field_data: bool, i: usize) -> &str;
+        /// The VTK XML type name the array had in the file (`Float32`, `Int64`, ...).
+        fn array_type(self: &ParticleFile, field_data: bool, i: usize) -> &str;
+        fn array_components(self: &ParticleFile, field_data: bool, i: usize) -> usize;
+        /// Values, tuple after tuple.
+        fn array_values(self: &ParticleFile, field_data: bool, i: usize) -> &[f64];
+
         /// The renderer: holds the particle data, settings, camera and transfer function.
         type Renderer;
 
@@ -130,6 +147,54 @@ mod ffi {
 }
 
 pub use ffi::{CameraDesc, RenderInfo, Settings};
+
+/// A data set read from a file, flattened for C++.
+pub struct ParticleFile {
+    points: Vec<f64>,
+    data: Dataset,
+}
+
+fn read_particle_file(path: &str) -> Result<Box<ParticleFile>, String> {
+    guarded("read_particle_file", || {
+        let data = fluidcast_io::read_dataset(path).map_err(|e| e.to_string())?;
+        let points = data.points.iter().flatten().copied().collect();
+        Ok(Box::new(ParticleFile { points, data }))
+    })
+}
+
+impl ParticleFile {
+    fn points(&self) -> &[f64] {
+        &self.points
+    }
+    fn arrays(&self, field_data: bool) -> &[DataArray] {
+        if field_data {
+            &self.data.field_data
+        } else {
+            &self.data.point_data
+        }
+    }
+    fn array_count(&self, field_data: bool) -> usize {
+        self.arrays(field_data).len()
+    }
+    fn array_name(&self, field_data: bool, i: usize) -> &str {
+        self.arrays(field_data).get(i).map_or("", |a| a.name.as_str())
+    }
+    fn array_type(&self, field_data: bool, i: usize) -> &str {
+        self.arrays(field_data)
+            .get(i)
+            .map_or("", |a| a.scalar_type.vtk_name())
+    }
+    fn array_components(&self, field_data: bool, i: usize) -> usize {
+        self.arrays(field_data)
+            .get(i)
+            .map_or(0, |a| a.num_components)
+    }
+    fn array_values(&self, field_data: bool, i: usize) -> &[f64] {
+        self.arrays(field_data)
+            .get(i)
+            .map_or(&[], |a| a.values.as_slice())
+    }
+}
 
 /// Particle data, settings and view state behind one `vtkFluidCastVolumeMapper`.
 pub struct Renderer {
