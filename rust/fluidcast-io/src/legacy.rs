@@ -288,7 +288,7 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                     .checked_mul(3)
                     .ok_or_else(|| format!("line {}: too many points", c.line_of(at)))?;
                 let v = c.values(n3, st, true)?;
-                p.points = Some(v.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect());
+                p.points = Some(crate::xyz(&v).collect());
                 c.maybe_metadata();
             }
             "VERTICES" | "LINES" | "POLYGONS" | "TRIANGLE_STRIPS" | "CELLS" => {

@@ -20,6 +20,12 @@
 //! Only the points, the point data and the field data are kept: cells are irrelevant for
 //! mesh-free particles (every point is a particle, whatever cells reference it).
 
+// Input must not be able to make this crate panic or truncate a size.
+#![cfg_attr(
+    not(test),
+    deny(clippy::indexing_slicing, clippy::cast_possible_truncation)
+)]
+
 mod error;
 mod legacy;
 mod payload;
@@ -154,6 +160,16 @@ impl ScalarType {
     }
 }
 
+/// Groups a flat list of coordinates into points (a trailing partial point is dropped; the
+/// readers check counts before).
+pub(crate) fn xyz(values: &[f64]) -> impl Iterator<Item = [f64; 3]> + '_ {
+    values.chunks_exact(3).map(|c| {
+        let mut p = [0.0; 3];
+        p.copy_from_slice(c);
+        p
+    })
+}
+
 /// One named array of tuples (point data or field data).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DataArray {
@@ -250,9 +266,9 @@ impl Dataset {
             .filter(|p| p.iter().all(|v| v.is_finite()))
         {
             any = true;
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
+            for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(p) {
+                *l = l.min(*v);
+                *h = h.max(*v);
             }
         }
         any.then_some((lo, hi))

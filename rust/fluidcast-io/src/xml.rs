@@ -574,7 +574,7 @@ fn concat_pieces(pieces: Vec<Piece>) -> Result<(Vec<[f64; 3]>, Vec<DataArray>), 
     let mut points = Vec::new();
     for (i, p) in pieces.iter().enumerate() {
         match &p.points {
-            Some(a) => points.extend(a.values.chunks_exact(3).map(|c| [c[0], c[1], c[2]])),
+            Some(a) => points.extend(crate::xyz(&a.values)),
             None if p.num_points == 0 => {}
             None => {
                 return Err(ReadErrorKind::Format(format!(
