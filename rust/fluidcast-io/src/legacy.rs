@@ -82,15 +82,18 @@ impl<'a> Cursor<'a> {
         }
     }
 
+    /// A legacy type name; case-insensitive, as VTK's reader (hand-written files say
+    /// `FLOAT`).
     fn scalar_type(&self, at: usize, name: &str) -> Res<ScalarType> {
-        match ScalarType::from_vtk_name(name) {
-            Some(_) if name == "bit" && self.binary => {
+        let lower = name.to_ascii_lowercase();
+        let known = ScalarType::from_vtk_name(&lower)
+            .or_else(|| (lower == "vtkidtype").then_some(ScalarType::I64));
+        match known {
+            Some(_) if lower == "bit" && self.binary => {
                 self.err(at, "binary 'bit' arrays are not supported")
             }
             Some(t) => Ok(t),
-            None if name.eq_ignore_ascii_case("string") => {
-                self.err(at, "string arrays are not supported")
-            }
+            None if lower == "string" => self.err(at, "string arrays are not supported"),
             None => self.err(at, format!("unknown data type '{name}'")),
         }
     }

@@ -298,3 +298,26 @@ fn devices_and_pipes_are_read_with_a_limit() {
         "{e}"
     );
 }
+
+#[test]
+fn hand_written_legacy_files_as_sph_codes_write_them() {
+    // Version 3.1, upper-case type names, one polyvertex cell, blank lines, SCALARS without
+    // a LOOKUP_TABLE line, a VECTORS section, Windows line ends.
+    let text =
+        "# vtk DataFile Version 3.1\r\nSimulation frame\r\nASCII\r\nDATASET UNSTRUCTURED_GRID\r\n\
+                POINTS 3 FLOAT\r\n0 0 0\r\n1 0 0\r\n0 1 0\r\n\r\nCELLS 1 4\r\n3 0 1 2\r\n\r\n\
+                CELL_TYPES 1\r\n2\r\n\r\nPOINT_DATA 3\r\nSCALARS rho DOUBLE 1\r\n1000 1001 1002\r\n\
+                VECTORS v FLOAT\r\n1 0 0 0 1 0 0 0 1\r\n";
+    let d =
+        parse_dataset(text.as_bytes(), Path::new("frame.vtk")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        d.points,
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+    );
+    assert_eq!(
+        d.point_array("rho").unwrap().values,
+        vec![1000.0, 1001.0, 1002.0]
+    );
+    let v = d.point_array("v").unwrap();
+    assert_eq!((v.num_components, v.values[4]), (3, 1.0));
+}
