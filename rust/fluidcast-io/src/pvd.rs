@@ -2,7 +2,8 @@ use std::path::{Path, PathBuf};
 
 use quick_xml::events::Event;
 
-use crate::{xml::attrs, ReadError, ReadErrorKind};
+use crate::xml::{attrs, check_tag};
+use crate::{ReadError, ReadErrorKind};
 
 /// One data set of a `.pvd` collection.
 #[derive(Debug, Clone, PartialEq)]
@@ -38,14 +39,18 @@ pub fn parse_collection(bytes: &[u8], path: &Path) -> Result<Collection, ReadErr
     let mut reader = quick_xml::Reader::from_reader(bytes);
     let mut entries = Vec::new();
     let mut saw_collection = false;
+    let mut collection_closed = false;
     loop {
+        let at = reader.buffer_position();
         match reader
             .read_event()
-            .map_err(|e| err(ReadErrorKind::Xml(e.to_string())))?
+            .map_err(|e| err(ReadErrorKind::Xml(format!("{e} (near byte {at})"))))?
         {
+            Event::End(e) if e.name().as_ref() == b"Collection" => collection_closed = true,
             Event::Start(e) | Event::Empty(e) => match e.name().as_ref() {
                 b"Collection" => saw_collection = true,
                 b"DataSet" => {
+                    check_tag(&e, at).map_err(|m| err(ReadErrorKind::Xml(m)))?;
                     let a = attrs(&e).map_err(|m| err(ReadErrorKind::Xml(m)))?;
                     let file = a.get("file").ok_or_else(|| {
                         err(ReadErrorKind::Format(
@@ -79,6 +84,11 @@ pub fn parse_collection(bytes: &[u8], path: &Path) -> Result<Collection, ReadErr
     if !saw_collection {
         return Err(err(ReadErrorKind::Format(
             "not a .pvd collection (no <Collection> element)".into(),
+        )));
+    }
+    if !collection_closed {
+        return Err(err(ReadErrorKind::Truncated(
+            "the collection has no </Collection> (file cut short?)".into(),
         )));
     }
     if entries.is_empty() {

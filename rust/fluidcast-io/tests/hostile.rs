@@ -280,7 +280,16 @@ fn collections_name_what_is_wrong() {
     );
     let e = refused(pvd, "inner.pvd");
     assert!(e.contains("a .pvd cannot list another .pvd"), "{e}");
-    assert!(parse_collection(b"<VTKFile><Collection>", Path::new("c.pvd")).is_err());
+    let e = parse_collection(
+        br#"<VTKFile type="Collection"><Collection><DataSet timestep="0" file="a.vtu"/>"#,
+        Path::new("cut.pvd"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("cut.pvd") && e.contains("no </Collection>"),
+        "{e}"
+    );
 }
 
 #[test]
