@@ -177,7 +177,9 @@ impl ParticleFile {
         self.arrays(field_data).len()
     }
     fn array_name(&self, field_data: bool, i: usize) -> &str {
-        self.arrays(field_data).get(i).map_or("", |a| a.name.as_str())
+        self.arrays(field_data)
+            .get(i)
+            .map_or("", |a| a.name.as_str())
     }
     fn array_type(&self, field_data: bool, i: usize) -> &str {
         self.arrays(field_data)

@@ -330,3 +330,69 @@ fn hand_written_legacy_files_as_sph_codes_write_them() {
     let v = d.point_array("v").unwrap();
     assert_eq!((v.num_components, v.values[4]), (3, 1.0));
 }
+
+/// A field-data array without `NumberOfTuples`: the only size is the payload's own header,
+/// so every bound must come from the file itself.
+fn undeclared_field_array(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
+    let mut out = format!(
+        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid><FieldData><DataArray type="Float32" Name="f" format="appended" offset="0"/></FieldData><Piece NumberOfPoints="0" NumberOfCells="0"/></UnstructuredGrid><AppendedData encoding="{}">_"#,
+        if base64 { "base64" } else { "raw" }
+    )
+    .into_bytes();
+    if base64 {
+        out.extend(B64.encode(payload).bytes());
+    } else {
+        out.extend_from_slice(payload);
+    }
+    out.extend_from_slice(b"\n</AppendedData></VTKFile>\n");
+    out
+}
+
+#[test]
+fn undeclared_sizes_are_bounded_by_the_file() {
+    let field = |file: &[u8]| parse_dataset(file, Path::new("u.vtu"));
+    for base64 in [false, true] {
+        // Valid: 12 bytes that fill the section exactly.
+        let mut ok = words(&[12]);
+        ok.extend_from_slice(&[0; 12]);
+        let d = field(&undeclared_field_array("", &ok, base64)).unwrap();
+        assert_eq!(d.field_data[0].values, vec![0.0; 3]);
+        // Lengths beyond the bytes present, up to 2^64 − 1.
+        for n in [16, 1 << 40, u64::MAX - 3, u64::MAX] {
+            let mut p = words(&[n]);
+            p.extend_from_slice(&[0; 12]);
+            let e = field(&undeclared_field_array("", &p, base64))
+                .unwrap_err()
+                .to_string();
+            // base64 text may hold 16 bytes' worth of characters; then it is cut short.
+            let short = base64 && e.contains("base64 data needs");
+            assert!(short || e.contains(&format!("data header says {n} bytes")), "{e}");
+        }
+        // lz4 cannot expand beyond 255:1: a 1 TiB claim is refused before allocating.
+        let blk = compress("vtkLZ4DataCompressor", &[0u8; 12]);
+        let mut p = words(&[1, 1 << 40, 1 << 40, blk.len() as u64]);
+        p.extend_from_slice(&blk);
+        let lz4 = r#"compressor="vtkLZ4DataCompressor""#;
+        let e = field(&undeclared_field_array(lz4, &p, base64))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cannot hold the 1099511627776 bytes"), "{e}");
+        // A last block larger than the block size is a damaged header.
+        let mut p = words(&[2, 12, 24, blk.len() as u64, blk.len() as u64]);
+        p.extend_from_slice(&blk);
+        p.extend_from_slice(&blk);
+        let e = field(&undeclared_field_array(lz4, &p, base64))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("last block of 24 bytes is larger than the block size 12"),
+            "{e}"
+        );
+        // A valid two-block array (12 + 12 bytes) with an undeclared size.
+        let mut p = words(&[2, 12, 0, blk.len() as u64, blk.len() as u64]);
+        p.extend_from_slice(&blk);
+        p.extend_from_slice(&blk);
+        let d = field(&undeclared_field_array(lz4, &p, base64)).unwrap();
+        assert_eq!(d.field_data[0].values.len(), 6);
+    }
+}
