@@ -211,13 +211,6 @@ impl BlockHeader {
             .ok_or_else(|| "compressed block sizes overflow".to_string())
     }
 
-    fn total(&self) -> usize {
-        match self.compressed.len() {
-            0 => 0,
-            n => (n - 1) * self.block_size + self.last_size,
-        }
-    }
-
     /// Decompresses all blocks of `data` (which must hold them all).
     fn inflate(&self, data: &[u8], c: Compressor) -> Result<Vec<u8>, String> {
         let nb = self.compressed.len();
@@ -228,9 +221,9 @@ impl BlockHeader {
                 data.len()
             ));
         }
-        // Never reserve more than the compressed bytes could plausibly give at once; the
-        // vector grows as real data arrives, capped per block.
-        let mut out = Vec::with_capacity(self.total().min(total_c.saturating_mul(8)));
+        // Reserve from the bytes present, never from the header's claim; the vector grows as
+        // real data arrives, capped per block.
+        let mut out = Vec::with_capacity(total_c.saturating_mul(4));
         let mut pos = 0usize;
         for (i, &cs) in self.compressed.iter().enumerate() {
             let blk = data

@@ -366,7 +366,10 @@ fn undeclared_sizes_are_bounded_by_the_file() {
                 .to_string();
             // base64 text may hold 16 bytes' worth of characters; then it is cut short.
             let short = base64 && e.contains("base64 data needs");
-            assert!(short || e.contains(&format!("data header says {n} bytes")), "{e}");
+            assert!(
+                short || e.contains(&format!("data header says {n} bytes")),
+                "{e}"
+            );
         }
         // lz4 cannot expand beyond 255:1: a 1 TiB claim is refused before allocating.
         let blk = compress("vtkLZ4DataCompressor", &[0u8; 12]);
