@@ -262,7 +262,11 @@ pub fn far_outliers(points: &[[f64; 3]]) -> Vec<usize> {
 /// Mean nearest-neighbour distance of (up to 4096 of) the finite points, world units; far
 /// outliers ([`far_outliers`]) do not count.
 pub fn mean_spacing(points: &[[f64; 3]]) -> Option<f64> {
-    let far = far_outliers(points);
+    spacing_without(points, &far_outliers(points))
+}
+
+/// [`mean_spacing`] of the finite points not listed in `far` (sorted indices).
+fn spacing_without(points: &[[f64; 3]], far: &[usize]) -> Option<f64> {
     let pts: Vec<[f32; 3]> = points
         .iter()
         .enumerate()
@@ -316,11 +320,16 @@ pub fn suggest_support_radius(points: &[[f64; 3]]) -> Option<f64> {
 /// Refuses a particle quantity that single precision, in which the renderers compute,
 /// turns into infinity, or (for radii and volumes, which are divided by) into zero or a
 /// subnormal: a volume of 1e39, a radius of 1e-40.
-fn single_precision(file: &Path, index: usize, vals: &[(&str, f64)]) -> Result<(), ParticleError> {
+/// `divided_by`: the renderers divide by the quantity, so it must stay a normal number.
+fn single_precision(
+    file: &Path,
+    index: usize,
+    divided_by: bool,
+    vals: &[(&str, f64)],
+) -> Result<(), ParticleError> {
     for &(what, v) in vals {
         let f = v as f32;
-        let divides = matches!(what, "volume" | "support radius");
-        let bad = (v.is_finite() && f.is_infinite()) || (divides && v != 0.0 && !f.is_normal());
+        let bad = (v.is_finite() && f.is_infinite()) || (divided_by && v != 0.0 && !f.is_normal());
         if bad {
             return Err(ParticleError::Other {
                 file: file.to_path_buf(),
@@ -354,7 +363,11 @@ impl Particles {
             Some(q) => quantity_values(ds, q)?,
             None => vec![1.0; n],
         };
-        let spacing = || mean_spacing(&ds.points);
+        // Outliers and the particle spacing are computed once, for the radius, the volume and
+        // the warning alike.
+        let far = far_outliers(&ds.points);
+        let spacing_cell = std::cell::OnceCell::new();
+        let spacing = || *spacing_cell.get_or_init(|| spacing_without(&ds.points, &far));
         let radii: Vec<f64> = match &spec.radius {
             RadiusSource::Array { name, scale } => {
                 let a = array(ds, name)?;
@@ -375,8 +388,9 @@ impl Particles {
                     vec![h; n]
                 }
                 None => {
-                    let h =
-                        suggest_support_radius(&ds.points).ok_or_else(|| ParticleError::Other {
+                    let h = spacing()
+                        .map(|s| 2.0 * s)
+                        .ok_or_else(|| ParticleError::Other {
                             file: file.clone(),
                             message: format!(
                                 "cannot suggest a support radius: {} finite points with no \
@@ -442,7 +456,6 @@ impl Particles {
                 _ => volumes.clone(),
             },
         };
-        let far = far_outliers(&ds.points);
         if let Some(&i) = far.first() {
             let x = ds.points[i];
             notes.push(format!(
@@ -479,8 +492,13 @@ impl Particles {
                 });
             }
             let x = ds.points[i];
-            single_precision(&file, i, &[("volume", v), ("support radius", h)])?;
-            single_precision(&file, i, &[("mass", masses[i]), ("value", values[i])])?;
+            single_precision(&file, i, true, &[("volume", v), ("support radius", h)])?;
+            single_precision(
+                &file,
+                i,
+                false,
+                &[("mass", masses[i]), ("value", values[i])],
+            )?;
             p.positions.push([x[0] as f32, x[1] as f32, x[2] as f32]);
             p.radii.push(h as f32);
             p.volumes.push(v as f32);
@@ -570,14 +588,16 @@ mod tests {
     #[test]
     fn single_precision_limits() {
         let f = Path::new("f.vtu");
-        assert!(single_precision(f, 0, &[("volume", 1e-30), ("support radius", 1e30)]).is_ok());
-        assert!(single_precision(f, 0, &[("volume", 1e39)]).is_err());
-        assert!(single_precision(f, 3, &[("support radius", 1e-40)])
+        assert!(
+            single_precision(f, 0, true, &[("volume", 1e-30), ("support radius", 1e30)]).is_ok()
+        );
+        assert!(single_precision(f, 0, true, &[("volume", 1e39)]).is_err());
+        assert!(single_precision(f, 3, true, &[("support radius", 1e-40)])
             .unwrap_err()
             .to_string()
             .contains("support radius of particle 3 is 1e-40"));
-        assert!(single_precision(f, 0, &[("value", 1e39)]).is_err());
+        assert!(single_precision(f, 0, false, &[("value", 1e39)]).is_err());
         // Small values and masses may round to zero; they are not divided by.
-        assert!(single_precision(f, 0, &[("value", 1e-50), ("mass", 1e-50)]).is_ok());
+        assert!(single_precision(f, 0, false, &[("value", 1e-50), ("mass", 1e-50)]).is_ok());
     }
 }
