@@ -19,18 +19,30 @@ struct Cursor<'a> {
     b: &'a [u8],
     pos: usize,
     binary: bool,
+    /// Where the first binary data block starts, once one was read.
+    first_binary: Option<usize>,
 }
 
 type Res<T> = Result<T, String>;
 
 impl<'a> Cursor<'a> {
-    /// Line number (1-based) of byte `at`.
-    fn line_of(&self, at: usize) -> usize {
-        1 + self.b.iter().take(at).filter(|&&c| c == b'\n').count()
+    /// Where byte `at` is, for messages: its line (1-based) while only text precedes it,
+    /// its byte offset once binary data does (whose bytes may hold newlines).
+    fn place(&self, at: usize) -> String {
+        if self.first_binary.is_some_and(|b| at > b) {
+            return format!("byte {at}");
+        }
+        let line = 1 + self.b.iter().take(at).filter(|&&c| c == b'\n').count();
+        format!("line {line}")
+    }
+
+    /// `msg` prefixed with where byte `at` is.
+    fn msg(&self, at: usize, msg: impl std::fmt::Display) -> String {
+        format!("{}: {msg}", self.place(at))
     }
 
     fn err<T>(&self, at: usize, msg: impl std::fmt::Display) -> Res<T> {
-        Err(format!("line {}: {msg}", self.line_of(at)))
+        Err(self.msg(at, msg))
     }
 
     fn skip_ws(&mut self) {
@@ -106,14 +118,17 @@ impl<'a> Cursor<'a> {
             let bytes = len
                 .and_then(|l| self.b.get(self.pos..self.pos.checked_add(l)?))
                 .ok_or_else(|| {
-                    format!(
-                        "line {}: {n} {} values need {} bytes, the file has {} left (file truncated?)",
-                        self.line_of(at),
-                        st.vtk_name(),
-                        len.map_or("too many".into(), |l| l.to_string()),
-                        self.b.len().saturating_sub(self.pos)
+                    self.msg(
+                        at,
+                        format!(
+                            "{n} {} values need {} bytes, the file has {} left (file truncated?)",
+                            st.vtk_name(),
+                            len.map_or("too many".into(), |l| l.to_string()),
+                            self.b.len().saturating_sub(self.pos)
+                        ),
                     )
                 })?;
+            self.first_binary.get_or_insert(at);
             self.pos += bytes.len();
             return if keep {
                 st.decode(bytes, true)
@@ -139,9 +154,7 @@ impl<'a> Cursor<'a> {
             };
             let v = match tok {
                 "nan" | "-nan" | "NaN" | "-NaN" => f64::NAN,
-                _ => {
-                    parse_token(tok, st).map_err(|m| format!("line {}: {m}", self.line_of(tat)))?
-                }
+                _ => parse_token(tok, st).map_err(|m| self.msg(tat, m))?,
             };
             self.pos = tat + tok.len();
             if keep {
@@ -245,6 +258,7 @@ fn parse_header(bytes: &[u8]) -> Res<(DatasetKind, Cursor<'_>)> {
         b: bytes,
         pos: 0,
         binary: false,
+        first_binary: None,
     };
     if !bytes.starts_with(b"# vtk DataFile") {
         return Err("not a legacy VTK file (no '# vtk DataFile Version' header)".into());
@@ -289,7 +303,7 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                 let st = c.scalar_type(at, w.get(2).unwrap_or(&""))?;
                 let n3 = n
                     .checked_mul(3)
-                    .ok_or_else(|| format!("line {}: too many points", c.line_of(at)))?;
+                    .ok_or_else(|| c.msg(at, "too many points"))?;
                 let v = c.values(n3, st, true)?;
                 p.points = Some(crate::xyz(&v).collect());
                 c.maybe_metadata();
@@ -397,7 +411,7 @@ fn field(c: &mut Cursor<'_>, tuples: Option<usize>) -> Res<Vec<DataArray>> {
         }
         let total = nc
             .checked_mul(nt)
-            .ok_or_else(|| format!("line {}: array too large", c.line_of(at)))?;
+            .ok_or_else(|| c.msg(at, "array too large"))?;
         let values = c.values(total, st, true)?;
         out.push(DataArray {
             name: unescape(w.first().unwrap_or(&"")),
@@ -459,7 +473,7 @@ fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
             };
             let total = size
                 .checked_mul(4)
-                .ok_or_else(|| format!("line {}: table too large", c.line_of(at)))?;
+                .ok_or_else(|| c.msg(at, "table too large"))?;
             c.values(total, st, false)?;
             return Ok(None);
         }
@@ -478,7 +492,7 @@ fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
     }
     let total = n
         .checked_mul(nc)
-        .ok_or_else(|| format!("line {}: array too large", c.line_of(at)))?;
+        .ok_or_else(|| c.msg(at, "array too large"))?;
     let values = c.values(total, st, true)?;
     c.maybe_metadata();
     Ok(Some(DataArray {
