@@ -2,7 +2,7 @@ use std::path::{Path, PathBuf};
 
 use quick_xml::events::Event;
 
-use crate::xml::{attrs, check_tag};
+use crate::xml::tag_attrs;
 use crate::{ReadError, ReadErrorKind};
 
 /// One data set of a `.pvd` collection.
@@ -50,8 +50,7 @@ pub fn parse_collection(bytes: &[u8], path: &Path) -> Result<Collection, ReadErr
             Event::Start(e) | Event::Empty(e) => match e.name().as_ref() {
                 b"Collection" => saw_collection = true,
                 b"DataSet" => {
-                    check_tag(&e, at).map_err(|m| err(ReadErrorKind::Xml(m)))?;
-                    let a = attrs(&e).map_err(|m| err(ReadErrorKind::Xml(m)))?;
+                    let a = tag_attrs(&e, at).map_err(|m| err(ReadErrorKind::Xml(m)))?;
                     let file = a.get("file").ok_or_else(|| {
                         err(ReadErrorKind::Format(
                             "<DataSet> without a 'file' attribute".into(),

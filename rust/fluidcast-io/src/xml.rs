@@ -29,16 +29,17 @@ pub(crate) fn attrs(e: &BytesStart) -> Result<HashMap<String, String>, String> {
     Ok(m)
 }
 
-/// Refuses a start tag whose text holds a `<` (an unclosed tag swallowing the next one,
-/// which quick-xml would read as attribute text but expat, VTK's parser, rejects).
-pub(crate) fn check_tag(e: &BytesStart, at: u64) -> Result<(), String> {
+/// The attributes of a start tag, refusing one whose text holds a `<` (an unclosed tag
+/// swallowing the next one, which quick-xml would read as attribute text but expat, VTK's
+/// parser, rejects).
+pub(crate) fn tag_attrs(e: &BytesStart, at: u64) -> Result<HashMap<String, String>, String> {
     if e.contains(&b'<') {
         return Err(format!(
             "'<' inside the <{}> tag (an unclosed tag?) near byte {at}",
             String::from_utf8_lossy(e.name().as_ref())
         ));
     }
-    attrs(e).map(|_| ())
+    attrs(e)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,25 +145,19 @@ fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErr
         ));
     }
     let data = rest.get(lead + 1..).unwrap_or_default();
-    let body = trim_end(data);
-    let tail_ok = body
+    // The data ends where `</AppendedData></VTKFile>` (and whitespace) closes the file.
+    let end = trim_end(data)
         .strip_suffix(b"</VTKFile>")
         .map(trim_end)
-        .is_some_and(|b| b.ends_with(b"</AppendedData>"));
-    if !tail_ok {
-        return Err(ReadErrorKind::Truncated(
-            "the file does not end with </AppendedData></VTKFile> (cut short, or garbage \
-             after the end)"
-                .into(),
-        ));
-    }
-    let end = trim_end(
-        body.strip_suffix(b"</VTKFile>")
-            .map(trim_end)
-            .and_then(|b| b.strip_suffix(b"</AppendedData>"))
-            .unwrap_or_default(),
-    )
-    .len();
+        .and_then(|b| b.strip_suffix(b"</AppendedData>"))
+        .map(|b| trim_end(b).len())
+        .ok_or_else(|| {
+            ReadErrorKind::Truncated(
+                "the file does not end with </AppendedData></VTKFile> (cut short, or \
+                 garbage after the end)"
+                    .into(),
+            )
+        })?;
     let appended = Appended {
         data,
         base64,
@@ -207,7 +202,7 @@ struct HeadParser {
 
 impl HeadParser {
     fn start(&mut self, e: &BytesStart, empty: bool, at: u64) -> Result<(), ReadErrorKind> {
-        check_tag(e, at).map_err(ReadErrorKind::Xml)?;
+        let a = tag_attrs(e, at).map_err(ReadErrorKind::Xml)?;
         if self.root_closed {
             return Err(ReadErrorKind::Format(format!(
                 "content after </VTKFile> near byte {at}"
@@ -218,7 +213,6 @@ impl HeadParser {
             self.nested += usize::from(!empty);
             return Ok(());
         }
-        let a = attrs(e).map_err(ReadErrorKind::Xml)?;
         match e.name().as_ref() {
             b"VTKFile" => self.file_attrs = Some(a),
             b"UnstructuredGrid" => self.kind = Some(DatasetKind::UnstructuredGrid),
