@@ -281,36 +281,52 @@ impl Dataset {
 /// files with structural problems; every error names the file.
 pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
     let path = path.as_ref();
-    let ext = extension(path);
-    if !matches!(ext.as_str(), "vtu" | "vtp" | "vtk" | "pvd") {
-        return Err(ReadError::new(
-            path,
-            ReadErrorKind::UnsupportedExtension(ext),
-        ));
-    }
-    let bytes = read_file(path)?;
-    parse_dataset(&bytes, path)
+    // The format first: an unsupported file (or /dev/zero) is refused before it is read.
+    let format = Format::of(path)?;
+    parse_as(format, &read_file(path)?, path)
 }
 
 /// Parses a particle file's bytes; `path` names it in errors and its extension chooses the
 /// format. The entry point for fuzzing and for data that is not on disk.
 pub fn parse_dataset(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
-    let ext = extension(path);
-    let ds = match ext.as_str() {
-        "vtu" | "vtp" => xml::parse(bytes, path),
-        "vtk" => legacy::parse(bytes, path),
-        "pvd" => Err(ReadError::new(
-            path,
-            ReadErrorKind::Format(
-                "this is a .pvd collection where one data set (.vtu, .vtp or .vtk) was \
-                 expected; a .pvd cannot list another .pvd"
-                    .into(),
-            ),
-        )),
-        _ => Err(ReadError::new(
-            path,
-            ReadErrorKind::UnsupportedExtension(ext.clone()),
-        )),
+    parse_as(Format::of(path)?, bytes, path)
+}
+
+/// The data-set formats, chosen by extension.
+#[derive(Clone, Copy)]
+enum Format {
+    /// `.vtu`, `.vtp`
+    Xml,
+    /// `.vtk`
+    Legacy,
+}
+
+impl Format {
+    fn of(path: &Path) -> Result<Format, ReadError> {
+        let ext = extension(path);
+        match ext.as_str() {
+            "vtu" | "vtp" => Ok(Format::Xml),
+            "vtk" => Ok(Format::Legacy),
+            "pvd" => Err(ReadError::new(
+                path,
+                ReadErrorKind::Format(
+                    "this is a .pvd collection where one data set (.vtu, .vtp or .vtk) was \
+                     expected; a .pvd cannot list another .pvd"
+                        .into(),
+                ),
+            )),
+            _ => Err(ReadError::new(
+                path,
+                ReadErrorKind::UnsupportedExtension(ext),
+            )),
+        }
+    }
+}
+
+fn parse_as(format: Format, bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
+    let ds = match format {
+        Format::Xml => xml::parse(bytes, path),
+        Format::Legacy => legacy::parse(bytes, path),
     }?;
     validate(&ds)?;
     Ok(ds)
