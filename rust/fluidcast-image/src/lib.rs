@@ -154,10 +154,7 @@ impl Image {
         if !matches!(kind.as_str(), "exr" | "png") {
             return Err(ImageError::Format(path.to_path_buf()));
         }
-        let meta = std::fs::metadata(path).map_err(|e| ferr(path, e))?;
-        fluidcast_mem::check(|| format!("reading {}", path.display()), meta.len())
-            .map_err(|e| ferr(path, e))?;
-        let bytes = std::fs::read(path).map_err(|e| ferr(path, e))?;
+        let bytes = fluidcast_mem::read_file(path).map_err(|e| ferr(path, e))?;
         Image::decode(&bytes, path)
     }
 

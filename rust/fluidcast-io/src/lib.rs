@@ -339,44 +339,20 @@ fn extension(path: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// The most bytes read from something that is not a regular file (a pipe or a device such
-/// as `/dev/zero`), whose length cannot be known in advance.
-pub const MAX_STREAM_BYTES: u64 = 256 << 20;
+pub use fluidcast_mem::MAX_STREAM_BYTES;
 
-/// Reads a whole file, refusing one that does not fit in memory and reading at most
-/// [`MAX_STREAM_BYTES`] from pipes and devices.
+/// Reads a whole file within the memory budget ([`fluidcast_mem::read_file`]); errors name
+/// the file.
 pub fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
-    use std::io::Read;
-    let err = |k| ReadError::new(path, k);
-    let f = std::fs::File::open(path).map_err(|e| err(ReadErrorKind::Io(e)))?;
-    let meta = f.metadata().map_err(|e| err(ReadErrorKind::Io(e)))?;
-    if meta.is_dir() {
-        return Err(err(ReadErrorKind::Format(
-            "is a directory, not a file".into(),
-        )));
-    }
-    let limit = if meta.is_file() {
-        fluidcast_mem::check(|| "reading this file".into(), meta.len())
-            .map_err(|e| err(ReadErrorKind::TooLarge(e.to_string())))?;
-        meta.len()
-    } else {
-        MAX_STREAM_BYTES
-    };
-    let mut bytes = Vec::with_capacity(usize::try_from(limit.min(MAX_STREAM_BYTES)).unwrap_or(0));
-    f.take(limit.saturating_add(1))
-        .read_to_end(&mut bytes)
-        .map_err(|e| err(ReadErrorKind::Io(e)))?;
-    if bytes.len() as u64 > limit {
-        return Err(err(ReadErrorKind::TooLarge(if meta.is_file() {
-            "the file grew while it was being read".into()
-        } else {
-            format!(
-                "not a regular file and longer than {} MiB: copy the data into a file first",
-                MAX_STREAM_BYTES >> 20
-            )
-        })));
-    }
-    Ok(bytes)
+    use fluidcast_mem::FileError;
+    fluidcast_mem::read_file(path).map_err(|e| {
+        let kind = match e {
+            FileError::Io(io) => ReadErrorKind::Io(io),
+            FileError::Directory => ReadErrorKind::Format(e.to_string()),
+            FileError::TooLarge(m) => ReadErrorKind::TooLarge(m),
+        };
+        ReadError::new(path, kind)
+    })
 }
 
 fn validate(ds: &Dataset) -> Result<(), ReadError> {

@@ -143,6 +143,52 @@ pub fn check(what: impl FnOnce() -> String, needed: u64) -> Result<(), MemError>
     }
 }
 
+/// The most bytes read from something that is not a regular file (a pipe or a device such
+/// as `/dev/zero`), whose length cannot be known in advance.
+pub const MAX_STREAM_BYTES: u64 = 256 << 20;
+
+/// Why a whole file could not be read into memory.
+#[derive(Debug, thiserror::Error)]
+pub enum FileError {
+    #[error("cannot read file: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("is a directory, not a file")]
+    Directory,
+    #[error("too large: {0}")]
+    TooLarge(String),
+}
+
+/// Reads a whole file, refusing one that does not fit the memory budget and reading at
+/// most [`MAX_STREAM_BYTES`] from pipes and devices.
+pub fn read_file(path: &std::path::Path) -> Result<Vec<u8>, FileError> {
+    use std::io::Read;
+    let f = std::fs::File::open(path)?;
+    let meta = f.metadata()?;
+    if meta.is_dir() {
+        return Err(FileError::Directory);
+    }
+    let limit = if meta.is_file() {
+        check(|| "reading this file".into(), meta.len())
+            .map_err(|e| FileError::TooLarge(e.to_string()))?;
+        meta.len()
+    } else {
+        MAX_STREAM_BYTES
+    };
+    let mut bytes = Vec::with_capacity(usize::try_from(limit.min(MAX_STREAM_BYTES)).unwrap_or(0));
+    f.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > limit {
+        return Err(FileError::TooLarge(if meta.is_file() {
+            "the file grew while it was being read".into()
+        } else {
+            format!(
+                "not a regular file and longer than {} MiB: copy the data into a file first",
+                MAX_STREAM_BYTES >> 20
+            )
+        }));
+    }
+    Ok(bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
