@@ -38,10 +38,11 @@ fn inline_vtu(file_attrs: &str, payload: &[u8]) -> Vec<u8> {
     .into_bytes()
 }
 
-/// The same point as appended data (raw or base64).
-fn appended_vtu(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
+/// A file whose data set is `body` and whose one appended payload is `payload` (raw or
+/// base64), ending as VTK ends it.
+fn with_appended(file_attrs: &str, body: &str, payload: &[u8], base64: bool) -> Vec<u8> {
     let mut out = format!(
-        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid><Piece NumberOfPoints="1" NumberOfCells="0"><Points><DataArray type="Float32" NumberOfComponents="3" format="appended" offset="0"/></Points></Piece></UnstructuredGrid><AppendedData encoding="{}">_"#,
+        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid>{body}</UnstructuredGrid><AppendedData encoding="{}">_"#,
         if base64 { "base64" } else { "raw" }
     )
     .into_bytes();
@@ -52,6 +53,12 @@ fn appended_vtu(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
     }
     out.extend_from_slice(b"\n</AppendedData></VTKFile>\n");
     out
+}
+
+/// The same point as appended data (raw or base64).
+fn appended_vtu(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
+    let body = r#"<Piece NumberOfPoints="1" NumberOfCells="0"><Points><DataArray type="Float32" NumberOfComponents="3" format="appended" offset="0"/></Points></Piece>"#;
+    with_appended(file_attrs, body, payload, base64)
 }
 
 fn words(w: &[u64]) -> Vec<u8> {
@@ -335,18 +342,8 @@ fn hand_written_legacy_files_as_sph_codes_write_them() {
 /// A field-data array without `NumberOfTuples`: the only size is the payload's own header,
 /// so every bound must come from the file itself.
 fn undeclared_field_array(file_attrs: &str, payload: &[u8], base64: bool) -> Vec<u8> {
-    let mut out = format!(
-        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64" {file_attrs}><UnstructuredGrid><FieldData><DataArray type="Float32" Name="f" format="appended" offset="0"/></FieldData><Piece NumberOfPoints="0" NumberOfCells="0"/></UnstructuredGrid><AppendedData encoding="{}">_"#,
-        if base64 { "base64" } else { "raw" }
-    )
-    .into_bytes();
-    if base64 {
-        out.extend(B64.encode(payload).bytes());
-    } else {
-        out.extend_from_slice(payload);
-    }
-    out.extend_from_slice(b"\n</AppendedData></VTKFile>\n");
-    out
+    let body = r#"<FieldData><DataArray type="Float32" Name="f" format="appended" offset="0"/></FieldData><Piece NumberOfPoints="0" NumberOfCells="0"/>"#;
+    with_appended(file_attrs, body, payload, base64)
 }
 
 #[test]
