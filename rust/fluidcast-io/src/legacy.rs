@@ -403,25 +403,45 @@ fn field(c: &mut Cursor<'_>, tuples: Option<usize>) -> Res<Vec<DataArray>> {
         let nc = c.count(at, &w, 1, "component count")?;
         let nt = c.count(at, &w, 2, "tuple count")?;
         let st = c.scalar_type(at, w.get(3).unwrap_or(&""))?;
-        if nc == 0 {
-            return c.err(at, "an array with 0 components");
-        }
         if let Some(t) = tuples.filter(|&t| t != nt) {
             return c.err(at, format!("array has {nt} tuples, the section {t}"));
         }
-        let total = nc
-            .checked_mul(nt)
-            .ok_or_else(|| c.msg(at, "array too large"))?;
-        let values = c.values(total, st, true)?;
-        out.push(DataArray {
-            name: unescape(w.first().unwrap_or(&"")),
-            scalar_type: st,
-            num_components: nc,
-            values,
-        });
-        c.maybe_metadata();
+        out.push(array_values(
+            c,
+            at,
+            unescape(w.first().unwrap_or(&"")),
+            st,
+            nc,
+            nt,
+        )?);
     }
     Ok(out)
+}
+
+/// The values of an array whose header line starts at `at`: `nt` tuples of `nc` components,
+/// then an optional METADATA block.
+fn array_values(
+    c: &mut Cursor<'_>,
+    at: usize,
+    name: String,
+    st: ScalarType,
+    nc: usize,
+    nt: usize,
+) -> Res<DataArray> {
+    if nc == 0 {
+        return c.err(at, "an array with 0 components");
+    }
+    let total = nt
+        .checked_mul(nc)
+        .ok_or_else(|| c.msg(at, "array too large"))?;
+    let values = c.values(total, st, true)?;
+    c.maybe_metadata();
+    Ok(DataArray {
+        name,
+        scalar_type: st,
+        num_components: nc,
+        values,
+    })
 }
 
 /// One attribute array of a `POINT_DATA`/`CELL_DATA` section with `n` tuples; `None` for
@@ -434,7 +454,12 @@ fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
         .map(|k| k.to_ascii_uppercase())
         .unwrap_or_default();
     let name = unescape(w.get(1).unwrap_or(&""));
-    let binary = c.binary;
+    // Colour scalars and lookup tables: bytes in binary files, floats in 0..1 in ASCII ones.
+    let color_type = if c.binary {
+        ScalarType::U8
+    } else {
+        ScalarType::F32
+    };
     let ty = |c: &Cursor<'_>, i: usize| c.scalar_type(at, w.get(i).unwrap_or(&""));
     let (st, nc) = match key.as_str() {
         "SCALARS" => {
@@ -455,26 +480,13 @@ fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
         "TENSORS6" => (ty(c, 2)?, 6),
         "TEXTURE_COORDINATES" => (ty(c, 3)?, c.count(at, &w, 2, "dimension")?),
         "GLOBAL_IDS" | "PEDIGREE_IDS" => (ty(c, 2)?, 1),
-        "COLOR_SCALARS" => {
-            let nc = c.count(at, &w, 2, "component count")?;
-            let st = if binary {
-                ScalarType::U8
-            } else {
-                ScalarType::F32
-            };
-            (st, nc)
-        }
+        "COLOR_SCALARS" => (color_type, c.count(at, &w, 2, "component count")?),
         "LOOKUP_TABLE" => {
             let size = c.count(at, &w, 2, "table size")?;
-            let st = if binary {
-                ScalarType::U8
-            } else {
-                ScalarType::F32
-            };
             let total = size
                 .checked_mul(4)
                 .ok_or_else(|| c.msg(at, "table too large"))?;
-            c.values(total, st, false)?;
+            c.values(total, color_type, false)?;
             return Ok(None);
         }
         _ => {
@@ -487,18 +499,5 @@ fn attribute(c: &mut Cursor<'_>, n: usize) -> Res<Option<DataArray>> {
             )
         }
     };
-    if nc == 0 {
-        return c.err(at, "an array with 0 components");
-    }
-    let total = n
-        .checked_mul(nc)
-        .ok_or_else(|| c.msg(at, "array too large"))?;
-    let values = c.values(total, st, true)?;
-    c.maybe_metadata();
-    Ok(Some(DataArray {
-        name,
-        scalar_type: st,
-        num_components: nc,
-        values,
-    }))
+    array_values(c, at, name, st, nc, n).map(Some)
 }
