@@ -194,20 +194,29 @@ impl Ray {
         }
     }
 
+    /// The ray's closest approach to the particle centre: the view depth `t` where it is
+    /// nearest and the squared distance `r²` there. Computed from the perpendicular offset,
+    /// not from `|o − c|² − h²`, so it loses no digits to cancellation (the GPU's f32 mirror in
+    /// raycast.wgsl uses the same form).
+    #[inline]
+    pub fn closest_approach(&self, p: &ViewParticle) -> (f64, f64) {
+        let (o, d) = (self.o, self.d);
+        let oc = [p.c[0] - o[0], p.c[1] - o[1], p.c[2] - o[2]];
+        let t = (d[0] * oc[0] + d[1] * oc[1] + d[2] * oc[2]) / self.dd;
+        let q = [oc[0] - t * d[0], oc[1] - t * d[1], oc[2] - t * d[2]];
+        (t, q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
+    }
+
     /// The view-depth interval in which the ray is inside the particle's support, if any.
     #[inline]
     pub fn support_interval(&self, p: &ViewParticle) -> Option<(f64, f64)> {
-        // |o + z d − c|² < h² ⇔ dd z² + 2 (d·(o−c)) z + |o−c|² − h² < 0.
-        let (o, d) = (self.o, self.d);
-        let oc = [o[0] - p.c[0], o[1] - p.c[1], o[2] - p.c[2]];
-        let b = d[0] * oc[0] + d[1] * oc[1] + d[2] * oc[2];
-        let c = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - p.h * p.h;
-        let disc = b * b - self.dd * c;
-        if disc <= 0.0 {
+        let (t, r2) = self.closest_approach(p);
+        let h2 = p.h * p.h;
+        if r2 >= h2 {
             return None;
         }
-        let sq = disc.sqrt();
-        Some(((-b - sq) / self.dd, (-b + sq) / self.dd))
+        let half = ((h2 - r2) / self.dd).sqrt();
+        Some((t - half, t + half))
     }
 
     /// Distance from the ray's point at depth `z` to the particle centre.

@@ -32,13 +32,20 @@ impl Sums {
         zs: &[f64],
         kernel: Kernel,
     ) -> Option<std::ops::Range<usize>> {
-        let (z0, z1) = ray.support_interval(p)?;
-        let range = within(zs, z0, z1);
+        // As raycast.wgsl: the interval and the distances from the closest approach.
+        let (t, r2) = ray.closest_approach(p);
+        let h2 = p.h * p.h;
+        if r2 >= h2 {
+            return None;
+        }
+        let half = ((h2 - r2) / ray.dd).sqrt();
+        let range = within(zs, t - half, t + half);
         if range.is_empty() {
             return None;
         }
         for k in range.clone() {
-            let wgt = kernel.eval(ray.distance_at(zs[k], p), p.h);
+            let dz = zs[k] - t;
+            let wgt = kernel.eval((r2 + ray.dd * dz * dz).sqrt(), p.h);
             if wgt > 0.0 {
                 self.weighted[k] += p.v * p.a * wgt;
                 self.shepard[k] += p.v * wgt;
