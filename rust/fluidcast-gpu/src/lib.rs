@@ -49,6 +49,13 @@ pub enum GpuError {
     GridTooLarge(u64, u64),
     #[error("{0} particles are more than the GPU renderer takes ({1})")]
     TooManyParticles(usize, u64),
+    #[error("{adapter} is a software driver (Mesa llvmpipe/lavapipe), which silently ends every shader invocation after 65535 loop iterations, and {stage} of this view needs more in one ray bundle; render with --backend cpu (auto does), at a larger image size or on a hardware GPU")]
+    LoopLimit {
+        adapter: String,
+        stage: &'static str,
+    },
+    #[error("the transfer function has {0} control points; the GPU renderer takes at most {max} per table", max = MAX_TF_POINTS)]
+    TransferFunction(usize),
     #[error(transparent)]
     Render(#[from] RenderError),
 }
@@ -86,7 +93,19 @@ pub struct Gpu {
     frame_lock: Mutex<()>,
     /// Largest storage buffer binding (bytes).
     max_binding: u64,
+    /// Loop iterations a shader invocation may run (`SOFTWARE_LOOP_LIMIT` on CPU adapters,
+    /// unlimited on hardware).
+    loop_limit: u32,
 }
+
+/// Most control points per transfer function table (colour, opacity) the shaders search
+/// (`table_at` in common.wgsl probes from 2048 down).
+pub const MAX_TF_POINTS: usize = 4096;
+
+/// Loop iterations one shader invocation may run on a software driver: Mesa's gallivm ends
+/// all loops of an invocation after 65535 (LP_MAX_TGSI_LOOP_ITERATIONS); the shaders count
+/// theirs with a bound a little above the driver's own count, so this leaves a margin.
+const SOFTWARE_LOOP_LIMIT: u32 = 60_000;
 
 /// Most timestamp queries one frame writes (two per timed pass).
 const QUERIES: u32 = 32;
@@ -120,7 +139,12 @@ impl Gpu {
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let common = include_str!("shaders/common.wgsl");
+        // Constants the Rust side owns, then the shared WGSL.
+        let common = format!(
+            "const MAX_TF_POINTS: u32 = {}u;\n{}",
+            MAX_TF_POINTS,
+            include_str!("shaders/common.wgsl")
+        );
         let module = |name: &str, src: String| {
             device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(name),
@@ -186,6 +210,11 @@ impl Gpu {
             frame_lock: Mutex::new(()),
             max_binding: (limits.max_storage_buffer_binding_size as u64)
                 .min(limits.max_buffer_size),
+            loop_limit: if info.device_type == wgpu::DeviceType::Cpu {
+                SOFTWARE_LOOP_LIMIT
+            } else {
+                u32::MAX
+            },
         })
     }
 

@@ -56,6 +56,8 @@ struct FrameUniform {
     max_level: u32,
     n_pairs: u32,
     n_cells: u32,
+    loop_limit: u32,
+    pad: [u32; 3],
 }
 
 /// A grid cell and its bundle (`Cell` in common.wgsl).
@@ -199,7 +201,7 @@ impl Gpu {
     ) -> Result<GpuRender, GpuError> {
         let _frame = self.frame_lock.lock().expect("frame lock");
         let t0 = Instant::now();
-        check_bundle(params)?;
+        check_supported(params, tf)?;
         let (grid, plan) = (&planned.grid, &planned.plan);
         let mut stats = planned.stats.clone();
         let mut image = Image::new(params.width, params.height);
@@ -210,7 +212,13 @@ impl Gpu {
             queries: self.timestamps.as_ref(),
             names: Vec::new(),
         };
-        let mut u = frame_uniform(&grid.frame, params, tf, grid.particles.len());
+        let mut u = frame_uniform(
+            &grid.frame,
+            params,
+            tf,
+            grid.particles.len(),
+            self.loop_limit,
+        );
         u.n_depths = depths.len() as u32;
         u.n_cells = grid.cells.len() as u32;
         let parts: Vec<[f32; 4]> = grid
@@ -270,6 +278,7 @@ impl Gpu {
             bundle_cells: self.upload("bundle cells", &bundle_cells),
             spans: self.upload("spans", &spans),
             span_count: self.upload("span counts", &span_count),
+            guard: self.upload("loop guard", &[0u32; 4]),
         };
         let t1 = Instant::now();
         self.raycast(&b, params, &mut timer, &mut image, &mut stats)?;
@@ -293,7 +302,7 @@ impl Gpu {
         let _frame = self.frame_lock.lock().expect("frame lock");
         let t0 = Instant::now();
         validate(params)?;
-        check_bundle(params)?;
+        check_supported(params, tf)?;
         params
             .adaptive
             .validate()
@@ -334,7 +343,7 @@ impl Gpu {
         if n == 0 {
             return empty(stats, image);
         }
-        let mut u = frame_uniform(&frame, params, tf, n);
+        let mut u = frame_uniform(&frame, params, tf, n, self.loop_limit);
 
         // 1. Particles to view space; their depth range.
         let world: Vec<[f32; 4]> = (0..n)
@@ -355,6 +364,7 @@ impl Gpu {
         let b_world = self.upload("world particles", &world);
         let b_vparts = self.buffer("view particles", 32 * n as u64, RW, None);
         let b_counters = self.upload("counters", &[u32::MAX, 0, 0, 0, 0, 0, 0, 0]);
+        let b_guard = self.upload("loop guard", &[0u32; 4]);
         let n32 = n as u32;
         self.submit_pass(&mut timer, "gpu_grid", |pass| {
             self.dispatch(
@@ -382,6 +392,7 @@ impl Gpu {
         if nb as u64 * cells_z * 2 > u32::MAX as u64 {
             return Err(GpuError::GridTooLarge(nb as u64, cells_z));
         }
+        self.check_loop_bounds(nb as u64, cells_z)?;
         stats.depth_samples = depths.len();
         stats.near = near;
         stats.far = far;
@@ -445,6 +456,7 @@ impl Gpu {
                     (8, &b_counts),
                     (9, &b_keys),
                     (10, &b_vals),
+                    (15, &b_guard),
                 ],
                 n32.div_ceil(256),
             );
@@ -538,6 +550,7 @@ impl Gpu {
                         (7, &b_surface),
                         (8, &b_bounds),
                         (9, &b_info),
+                        (17, &b_guard),
                     ],
                     ncells,
                 );
@@ -579,6 +592,7 @@ impl Gpu {
             bundle_cells: b_bcells,
             spans: b_spans,
             span_count: b_span_count,
+            guard: b_guard,
         };
         self.raycast(&b, params, &mut timer, &mut image, &mut stats)?;
         push_stage(&mut stats, "raycast", ms(t2));
@@ -830,6 +844,7 @@ impl Gpu {
                     (11, &b_depth),
                     (12, &b_samples),
                     (13, &b_limit),
+                    (14, &b.guard),
                 ],
                 (w.div_ceil(d), h.div_ceil(d)),
             );
@@ -838,7 +853,11 @@ impl Gpu {
             (&b_rgba, 16 * n_px),
             (&b_depth, 4 * n_px),
             (&b_samples, 4 * n_px),
+            (&b.guard, 4),
         ])?;
+        if cast::<u32>(&got[3])[0] != 0 {
+            return Err(self.loop_limit_error("the grid, the error analysis or the ray casting"));
+        }
         image.rgba = cast(&got[0]);
         let depth: Vec<f32> = cast(&got[1]);
         image.depth = depth
@@ -885,11 +904,42 @@ struct Buffers {
     bundle_cells: wgpu::Buffer,
     spans: wgpu::Buffer,
     span_count: wgpu::Buffer,
+    /// Set by any stage of the frame whose loops ran past `Gpu::loop_limit`.
+    guard: wgpu::Buffer,
 }
 
-fn check_bundle(params: &RenderParams) -> Result<(), GpuError> {
+impl Gpu {
+    /// The stages without a guard of their own loop a number of times that the host can bound:
+    /// `bundle_ranges` at most twice the bundle count, `greedy` about 26 times the cells along
+    /// a bundle (see plan.wgsl). On a software driver these must stay under its loop limit.
+    fn check_loop_bounds(&self, bundles: u64, cells_z: u64) -> Result<(), GpuError> {
+        let limit = self.loop_limit as u64;
+        if 2 * bundles + 2 > limit {
+            return Err(self.loop_limit_error("the bundle table"));
+        }
+        if cells_z * 26 + 20 > limit {
+            return Err(self.loop_limit_error("the greedy plan"));
+        }
+        Ok(())
+    }
+
+    fn loop_limit_error(&self, stage: &'static str) -> GpuError {
+        GpuError::LoopLimit {
+            adapter: self.adapter.clone(),
+            stage,
+        }
+    }
+}
+
+/// What the shaders take: bundles of at most 8x8 rays, transfer function tables of at most
+/// MAX_TF_POINTS points.
+fn check_supported(params: &RenderParams, tf: &TransferFunction) -> Result<(), GpuError> {
     if params.grid.bundle > 8 {
         return Err(GpuError::BundleTooLarge(params.grid.bundle));
+    }
+    let points = tf.colors.len().max(tf.opacity.len());
+    if points > crate::MAX_TF_POINTS {
+        return Err(GpuError::TransferFunction(points));
     }
     Ok(())
 }
@@ -899,6 +949,7 @@ fn frame_uniform(
     params: &RenderParams,
     tf: &TransferFunction,
     n: usize,
+    loop_limit: u32,
 ) -> FrameUniform {
     let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
     let d = params.grid.bundle;
@@ -953,6 +1004,8 @@ fn frame_uniform(
         max_level: params.grid.max_level(),
         n_pairs: 0,
         n_cells: 0,
+        loop_limit,
+        pad: [0; 3],
     }
 }
 

@@ -39,6 +39,10 @@ struct Frame {
     max_level: u32,      // log2 D_z
     n_pairs: u32,
     n_cells: u32,
+    loop_limit: u32,     // loop iterations one invocation may run (see `tick`)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 /// A non-empty grid cell (fluidcast_grid::Cell) and its bundle.
@@ -76,6 +80,24 @@ const PI: f32 = 3.14159265358979;
 const LEVELS: u32 = 7u;
 // Stands for an infinite extinction (alpha = 1): exp(-K_INF * ds) is 0 for any step.
 const K_INF: f32 = 1.0e30;
+
+/// Mesa's software drivers (llvmpipe, lavapipe) end every loop of a shader invocation once the
+/// invocation has run LP_MAX_TGSI_LOOP_ITERATIONS (65535) iterations of all its loops
+/// together (a loop of n iterations counts n + 1: the pass that exits counts too), silently: the rest of the work, stores included, is skipped and the image is
+/// wrong. Shaders that can loop long count their iterations (`tick`, with a bound that is the
+/// same for every invocation of a SIMD batch, so it bounds the driver's count) and, *before* a
+/// loop that would take the count past P.loop_limit (u32::MAX on hardware GPUs), raise their
+/// guard flag and skip the work (`over_budget`); the host then refuses the frame.
+var<private> ticks: u32 = 0u;
+
+fn tick(n: u32) {
+    ticks = ticks + n;
+}
+
+/// True when `next` more iterations would pass P.loop_limit.
+fn over_budget(next: u32) -> bool {
+    return next > P.loop_limit - min(ticks, P.loop_limit);
+}
 
 /// Index of this workgroup in a dispatch that may be folded into two dimensions.
 fn group_index(wg: vec3<u32>, nw: vec3<u32>) -> u32 {
@@ -135,22 +157,44 @@ fn tf_t(q: f32) -> f32 {
 }
 
 /// The piecewise-linear table tf[first..first + n] at map position t: clamped to its end
-/// points, linear between them.
+/// points, linear between them. A binary search written out without a loop (tables of up to
+/// MAX_TF_POINTS points; see `tick`): between point i - 1 and the first point i with t <= x_i.
 fn table_at(first: u32, n: u32, t: f32) -> vec3<f32> {
-    var v = tf[first].yzw;
-    if (t > tf[first].x) {
-        v = tf[first + n - 1u].yzw;
-        for (var i = first + 1u; i < first + n; i = i + 1u) {
-            if (t <= tf[i].x) {
-                let d = tf[i].x - tf[i - 1u].x;
-                var f = 1.0;
-                if (d > 0.0) { f = (t - tf[i - 1u].x) / d; }
-                v = mix(tf[i - 1u].yzw, tf[i].yzw, f);
-                break;
-            }
-        }
+    if (t <= tf[first].x) {
+        return tf[first].yzw;
     }
-    return v;
+    let last = first + n - 1u;
+    if (t > tf[last].x) {
+        return tf[last].yzw;
+    }
+    var lo = 0u; // x_lo < t
+    lo = tf_probe(first, n, t, lo, 2048u);
+    lo = tf_probe(first, n, t, lo, 1024u);
+    lo = tf_probe(first, n, t, lo, 512u);
+    lo = tf_probe(first, n, t, lo, 256u);
+    lo = tf_probe(first, n, t, lo, 128u);
+    lo = tf_probe(first, n, t, lo, 64u);
+    lo = tf_probe(first, n, t, lo, 32u);
+    lo = tf_probe(first, n, t, lo, 16u);
+    lo = tf_probe(first, n, t, lo, 8u);
+    lo = tf_probe(first, n, t, lo, 4u);
+    lo = tf_probe(first, n, t, lo, 2u);
+    lo = tf_probe(first, n, t, lo, 1u);
+    let a = tf[first + lo];
+    let b = tf[first + lo + 1u];
+    let d = b.x - a.x;
+    var f = 1.0;
+    if (d > 0.0) { f = (t - a.x) / d; }
+    return mix(a.yzw, b.yzw, f);
+}
+
+/// One step of table_at's search: lo + step when that point still lies below t.
+fn tf_probe(first: u32, n: u32, t: f32, lo: u32, step: u32) -> u32 {
+    let m = lo + step;
+    if (m < n && tf[first + m].x < t) {
+        return m;
+    }
+    return lo;
 }
 
 /// Colour and opacity per unit distance at map position t (TransferFunction::eval_normalised).

@@ -19,6 +19,8 @@
 @group(0) @binding(12) var<storage, read_write> cells: array<Cell>;
 @group(0) @binding(13) var<storage, read_write> bundle_cells: array<u32>;
 @group(0) @binding(14) var<storage, read> sorted_keys: array<u32>;
+// [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
+@group(0) @binding(15) var<storage, read_write> guard: array<atomic<u32>>;
 
 var<workgroup> wg_min: atomic<u32>;
 var<workgroup> wg_max: atomic<u32>;
@@ -177,15 +179,21 @@ fn emit(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<
     }
     let f = foot[2u * j];
     let fz = foot[2u * j + 1u];
-    for (var y = f.z; y <= f.w; y = y + 1u) {
-        for (var x = f.x; x <= f.y; x = x + 1u) {
-            let b = y * P.bundles_x + x;
-            for (var z = fz.x; z <= fz.y; z = z + 1u) {
-                keys[i] = ((b * P.cells_z + z) << 1u) | select(0u, 1u, z < fz.y);
-                vals[i] = j;
-                i = i + 1u;
-            }
-        }
+    // One loop over the particle's pairs (x fastest after z), so each invocation loops exactly
+    // its pair count and the longest one bounds its SIMD batch.
+    let nz = fz.y - fz.x + 1u;
+    let nx = f.y - f.x + 1u;
+    let n = end - i;
+    if (over_budget(n + 1u)) {
+        atomicOr(&guard[0], 1u);
+        return;
+    }
+    for (var t = 0u; t < n; t = t + 1u) {
+        let z = fz.x + t % nz;
+        let xy = t / nz;
+        let b = (f.z + xy / nx) * P.bundles_x + f.x + xy % nx;
+        keys[i + t] = ((b * P.cells_z + z) << 1u) | select(0u, 1u, z < fz.y);
+        vals[i + t] = j;
     }
 }
 

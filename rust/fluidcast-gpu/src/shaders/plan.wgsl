@@ -21,6 +21,8 @@
 @group(0) @binding(15) var<storage, read_write> summaries: array<vec4<f32>>;
 // [cells per level 0..7, super-pixel cells, surface cells, merged cells, refs sampled]
 @group(0) @binding(16) var<storage, read_write> plan_stats: array<atomic<u32>>;
+// [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
+@group(0) @binding(17) var<storage, read_write> guard: array<atomic<u32>>;
 
 /// A bundle's rays: extremes of the direction's (perspective) or origin's (parallel) x and y
 /// over its pixel centres, and of |d| (fluidcast_grid::Bundle).
@@ -146,6 +148,7 @@ struct Extremes {
 };
 
 fn table_extremes(first: u32, n: u32, t0: f32, t1: f32) -> Extremes {
+    tick(n + 1u);
     var e = Extremes(vec3<f32>(3.0e38), vec3<f32>(-3.0e38));
     for (var i = first; i < first + n; i = i + 1u) {
         let p = tf[i];
@@ -185,6 +188,17 @@ fn tf_range(q0: f32, q1: f32) -> ValueBound {
 var<workgroup> parts: array<Rays, 16>;
 var<workgroup> vbs: array<ValueBound, 64>;
 var<workgroup> cell_flags: atomic<u32>;
+// Per invocation: what its share of the cell's references gave its depth sample.
+var<workgroup> g_q: array<vec4<f32>, 64>;   // (qlo, qhi, slo, shi)
+var<workgroup> g_any: array<u32, 64>;
+var<workgroup> g_cover: array<u32, 64>;
+
+/// The sample bounds of one depth sample from a share of a cell's references.
+struct Share {
+    q: vec4<f32>, // (qlo, qhi, slo, shi)
+    any: bool,
+    cover: u32,
+};
 
 fn cut(a: u32, n: u32, g: u32, i: u32) -> u32 {
     return a + i * n / g;
@@ -215,65 +229,38 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
     workgroupBarrier();
     let full = (1u << np) - 1u;
     var part_r2 = 3.0e38;
+    tick(np + 1u);
     for (var s = 0u; s < np; s = s + 1u) {
         let p = parts[s];
         part_r2 = min(part_r2, 0.25 * ((p.x.y - p.x.x) * (p.x.y - p.x.x) + (p.y.y - p.y.x) * (p.y.y - p.y.x)));
     }
     let k0 = cell.z * P.dz;
+    // All 64 invocations work: invocation li takes depth sample li % D_z and every G-th of the
+    // cell's references (G = 64 / D_z groups), which keeps each one's loop short.
+    let groups = 64u / P.dz;
+    let share = analyse_share(cell, rays, full, np, part_r2, depths[k0 + li % P.dz],
+                              cell.start + li / P.dz, groups);
+    g_q[li] = share.q;
+    g_any[li] = u32(share.any);
+    g_cover[li] = share.cover;
+    workgroupBarrier();
     if (li < P.dz) {
-        let z = depths[k0 + li];
-        var qlo = 3.0e38;
-        var qhi = -3.0e38;
-        var slo = 0.0;
-        var shi = 0.0;
+        var q = vec4<f32>(3.0e38, -3.0e38, 0.0, 0.0);
         var any = false;
         var cover = 0u;
-        for (var r = cell.start; r < cell.end; r = r + 1u) {
-            let j = refs[r];
-            let a = vparts[2u * j];
-            if (z < a.z - a.w || z > a.z + a.w) {
-                continue;
-            }
-            let pb = vparts[2u * j + 1u];
-            let wmax = kernel_w(0.0, a.w);
-            any = true;
-            qlo = min(qlo, pb.y);
-            qhi = max(qhi, pb.y);
-            if (P.field == 1u) {
-                let s = pb.y * pb.x * wmax;
-                slo = slo + min(s, 0.0);
-                shi = shi + max(s, 0.0);
-            } else if (P.field == 2u) {
-                shi = shi + pb.z * wmax;
-            }
-            if (cover != full) {
-                // The disc must at least reach over a sub-bundle's half diagonal.
-                let dzk = z - a.z;
-                let lim = a.w * a.w - dzk * dzk;
-                var scale = z * z;
-                if (P.parallel_scale > 0.0) {
-                    scale = 1.0;
-                }
-                if (lim <= part_r2 * scale) {
-                    continue;
-                }
-                if (covered(rays, a.xyz, a.w, z)) {
-                    cover = full;
-                } else {
-                    for (var s = 0u; s < np; s = s + 1u) {
-                        if ((cover & (1u << s)) == 0u && covered(parts[s], a.xyz, a.w, z)) {
-                            cover = cover | (1u << s);
-                        }
-                    }
-                }
-            }
+        tick(groups + 1u);
+        for (var g = 0u; g < groups; g = g + 1u) {
+            let k = g * P.dz + li;
+            q = vec4<f32>(min(q.x, g_q[k].x), max(q.y, g_q[k].y), q.z + g_q[k].z, q.w + g_q[k].w);
+            any = any || g_any[k] != 0u;
+            cover = cover | g_cover[k];
         }
         var vb = ValueBound(true, true, vec3<f32>(0.0), vec3<f32>(0.0), vec2<f32>(0.0));
         if (any) {
             if (P.field == 0u) {
-                vb = tf_range(qlo, qhi);
+                vb = tf_range(q.x, q.y);
             } else {
-                vb = tf_range(slo, shi);
+                vb = tf_range(q.z, q.w);
             }
             vb.may_be_empty = cover != full;
             if (cover != full) {
@@ -283,6 +270,7 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
         vbs[li] = vb;
     }
     if (P.surface_rule == 1u) {
+        tick((cell.end - cell.start + 63u) / 64u + 1u);
         for (var r = cell.start + li; r < cell.end; r = r + 64u) {
             if (surface[refs[r]] != 0u) {
                 atomicOr(&cell_flags, 2u);
@@ -296,6 +284,7 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
         // step, so step k's bound is the union of both samples' bounds.
         let step = 1u << li;
         var acc = bound_empty();
+        tick(P.dz + 1u);
         for (var k = 0u; k < P.dz; k = k + 1u) {
             var u = vbs[k];
             if (k % step != 0u) {
@@ -310,6 +299,61 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
     if (li == 0u) {
         info[c] = atomicLoad(&cell_flags);
     }
+}
+
+/// Quantity bounds and coverage at depth z from the references r0, r0 + step, … of a cell.
+fn analyse_share(cell: Cell, rays: Rays, full: u32, np: u32, part_r2: f32, z: f32, r0: u32,
+                 step: u32) -> Share {
+    var out = Share(vec4<f32>(3.0e38, -3.0e38, 0.0, 0.0), false, 0u);
+    // Same count in every invocation: the number of references, each with its coverage loop,
+    // and what analyse loops after this (a reduction, a transfer function range, a bound).
+    let count = (cell.end - cell.start + step - 1u) / step * (2u + np) + 1u;
+    if (over_budget(count + 70u + P.n_colors + P.n_opacity + 2u * P.dz + cell.end - cell.start)) {
+        atomicOr(&guard[0], 1u);
+        return out;
+    }
+    tick(count);
+    for (var r = r0; r < cell.end; r = r + step) {
+        let j = refs[r];
+        let a = vparts[2u * j];
+        if (z < a.z - a.w || z > a.z + a.w) {
+            continue;
+        }
+        let pb = vparts[2u * j + 1u];
+        let wmax = kernel_w(0.0, a.w);
+        out.any = true;
+        out.q.x = min(out.q.x, pb.y);
+        out.q.y = max(out.q.y, pb.y);
+        if (P.field == 1u) {
+            let s = pb.y * pb.x * wmax;
+            out.q.z = out.q.z + min(s, 0.0);
+            out.q.w = out.q.w + max(s, 0.0);
+        } else if (P.field == 2u) {
+            out.q.w = out.q.w + pb.z * wmax;
+        }
+        if (out.cover != full) {
+            // The disc must at least reach over a sub-bundle's half diagonal.
+            let dzk = z - a.z;
+            let lim = a.w * a.w - dzk * dzk;
+            var scale = z * z;
+            if (P.parallel_scale > 0.0) {
+                scale = 1.0;
+            }
+            if (lim <= part_r2 * scale) {
+                continue;
+            }
+            if (covered(rays, a.xyz, a.w, z)) {
+                out.cover = full;
+            } else {
+                for (var s = 0u; s < np; s = s + 1u) {
+                    if ((out.cover & (1u << s)) == 0u && covered(parts[s], a.xyz, a.w, z)) {
+                        out.cover = out.cover | (1u << s);
+                    }
+                }
+            }
+        }
+    }
+    return out;
 }
 
 fn bound_at(c: u32, l: u32) -> Bound {

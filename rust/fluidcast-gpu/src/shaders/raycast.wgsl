@@ -15,6 +15,8 @@
 @group(0) @binding(11) var<storage, read_write> out_depth: array<f32>;
 @group(0) @binding(12) var<storage, read_write> out_samples: array<u32>;
 @group(0) @binding(13) var<storage, read> depth_limit: array<f32>;
+// [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
+@group(0) @binding(14) var<storage, read_write> guard: array<atomic<u32>>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
@@ -26,6 +28,7 @@ var<workgroup> done_flag: u32;
 
 /// The t-th particle reference of a span: the merged cells' references, each particle once
 /// (a cell's references with the merge bit set are repeated by the next cell).
+/// Loops `count` times at most: the caller ticks.
 fn span_ref(first: u32, count: u32, t: u32) -> u32 {
     var rest = t;
     for (var i = 0u; i < count; i = i + 1u) {
@@ -41,12 +44,38 @@ fn span_ref(first: u32, count: u32, t: u32) -> u32 {
 
 /// Number of particle references of a span (GridPlan::merged_refs).
 fn span_refs(first: u32, count: u32) -> u32 {
+    tick(count + 1u);
     var n = 0u;
     for (var i = 0u; i < count; i = i + 1u) {
         let c = cells[first + i];
         n = n + select(c.unique_end, c.end, i + 1u == count) - c.start;
     }
     return n;
+}
+
+/// How many of the span's first n (<= 64) samples, at depths[k0 + m * step], lie below z
+/// (or at or below it, when `or_at`): a binary search written out without a loop.
+fn samples_below(k0: u32, step: u32, n: u32, z: f32, or_at: bool) -> u32 {
+    var lo = 0u;
+    lo = below_probe(k0, step, n, z, or_at, lo, 64u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 32u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 16u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 8u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 4u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 2u);
+    lo = below_probe(k0, step, n, z, or_at, lo, 1u);
+    return lo;
+}
+
+fn below_probe(k0: u32, step: u32, n: u32, z: f32, or_at: bool, lo: u32, by: u32) -> u32 {
+    let m = lo + by;
+    if (m <= n) {
+        let zm = depths[k0 + (m - 1u) * step];
+        if (zm < z || (or_at && zm == z)) {
+            return m;
+        }
+    }
+    return lo;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -84,9 +113,12 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     var shepard: array<f32, MAXS>;
     var density: array<f32, MAXS>;
 
+    var guarded = false;
     let s0 = bundle_cells[b];
     let s1 = s0 + span_count[b];
+    tick(1u);
     for (var s = s0; s < s1; s = s + 1u) {
+        tick(1u);
         if (li == 0u) {
             atomicStore(&all_done, 0u);
         }
@@ -133,25 +165,41 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             continue;
         }
         let n = span.n;
+        tick(n + 1u);
         for (var m = 0u; m < n; m = m + 1u) { // only samples 0..n are used
             weighted[m] = 0.0;
             shepard[m] = 0.0;
             density[m] = 0.0;
         }
         let ref_count = span_refs(span.first, span.count);
+        tick(1u);
         for (var c0 = 0u; c0 < ref_count; c0 = c0 + CHUNK) {
+            tick(2u); // this loop and the exit of the k loop
             let cn = min(CHUNK, ref_count - c0);
             workgroupBarrier();
+            tick(span.count + 1u); // span_ref, in the invocations that load
             if (li < cn) {
                 let pid = span_ref(span.first, span.count, c0 + li);
                 cache_a[li] = particles[2u * pid];
                 cache_b[li] = particles[2u * pid + 1u];
             }
             workgroupBarrier();
+            // The chunk, then the rest of the span, at most: stop before the driver would.
+            if (!done && over_budget(cn * (n + 2u) + 2u * n + 2u * span.count + 16u)) {
+                guarded = true;
+                done = true;
+            }
             if (!done) {
                 for (var k = 0u; k < cn; k = k + 1u) {
                     let pa = cache_a[k];
                     let pb = cache_b[k];
+                    // Every ray's support interval lies in the slab of view depths
+                    // [c.z - H, c.z + H] (padded for rounding), so the samples to visit are the
+                    // same for all rays of the bundle: a uniform loop, short and countable.
+                    let pad = 1.0e-4 * pa.w + 1.0e-6 * abs(pa.z);
+                    let m0 = samples_below(span.k0, span.step, n, pa.z - pa.w - pad, false);
+                    let m1 = samples_below(span.k0, span.step, n, pa.z + pa.w + pad, true);
+                    tick(2u + m1 - m0); // the k loop and the m loop, which also counts its exit
                     // The support interval from the closest approach (Ray::support_interval):
                     // no h² − |o − c|² cancellation, so f32 loses only ~1e-5 H at the edge.
                     let oc = pa.xyz - o;
@@ -159,19 +207,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                     let perp = oc - tc * d;
                     let r2 = dot(perp, perp);
                     let h2 = pa.w * pa.w;
-                    if (r2 >= h2) {
-                        continue;
-                    }
-                    let half = sqrt((h2 - r2) / dd);
+                    let hits = r2 < h2;
+                    let half = sqrt(max(h2 - r2, 0.0) / dd);
                     let z0 = tc - half;
                     let z1 = tc + half;
-                    for (var m = 0u; m < n; m = m + 1u) {
+                    for (var m = m0; m < m1; m = m + 1u) {
                         let z = depths[span.k0 + m * span.step];
-                        if (z < z0) {
+                        if (!hits || z < z0 || z > z1) {
                             continue;
-                        }
-                        if (z > z1) {
-                            break;
                         }
                         let dz = z - tc;
                         let w = kernel_w(sqrt(r2 + dd * dz * dz), pa.w);
@@ -184,6 +227,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 }
             }
         }
+        tick(n + 1u); // compositing, at most n samples
         if (!done) {
             for (var m = 0u; m < n; m = m + 1u) {
                 if (shepard[m] <= 0.0) {
@@ -215,6 +259,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 }
             }
         }
+    }
+    if (guarded) {
+        atomicOr(&guard[0], 1u);
     }
     if (in_image) {
         let idx = j * P.width + i;
