@@ -218,6 +218,12 @@ impl Gpu {
         })
     }
 
+    /// True on a software driver (a CPU adapter: Mesa's lavapipe or llvmpipe), whose loop limit
+    /// the shaders guard (see `GpuError::LoopLimit`).
+    pub fn is_software(&self) -> bool {
+        self.loop_limit != u32::MAX
+    }
+
     /// True when the adapter reports GPU-side timings (timestamp queries): stages named
     /// `gpu_*` in the stats.
     pub fn has_timestamps(&self) -> bool {
