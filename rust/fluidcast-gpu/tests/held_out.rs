@@ -18,7 +18,7 @@ use fluidcast_view::{Camera, TransferFunction};
 fn spray_scene() -> Particles {
     let mut rnd = rng(7);
     let mut p = Particles::default();
-    let mut push = |p: &mut Particles, x: [f32; 3], h: f32, v: f32| {
+    let push = |p: &mut Particles, x: [f32; 3], h: f32, v: f32| {
         p.positions.push(x);
         p.radii.push(h);
         p.volumes.push(0.8 * h * h * h / 8.0);
