@@ -92,7 +92,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
         }
     }
     // With a GPU, every adaptive render is repeated on it and reported in a second table.
-    let gpu = crate::render::open_gpu(a.sampling.backend, crate::view::Mode::Adaptive)?;
+    let mut sampling = a.sampling.clone();
+    sampling.mode = crate::view::Mode::Adaptive;
+    let backend = crate::render::open_backend(&sampling)?;
+    let gpu = backend.gpu();
     let base = a.sampling.params(&a.view, &a.particles)?;
     let base_tf = a.view.base_tf()?;
     let input = Input::open(&a.input)?;
@@ -143,7 +146,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 let r = render_adaptive(&particles, None, &cam, tf, &prm)
                     .with_context(|| format!("rendering {}", file.display()))?;
                 runs[t].add(&r.stats);
-                if let Some(g) = &gpu {
+                if let Some(g) = gpu {
                     let rg = g
                         .render_adaptive(&particles, None, &cam, tf, &prm)
                         .with_context(|| format!("rendering {} on the GPU", file.display()))?;
@@ -258,7 +261,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                          "views": r.stages.len(), "samples": r.samples}));
     }
     let mut gpu_rows = Vec::new();
-    if let Some(g) = &gpu {
+    if let Some(g) = gpu {
         out!(
             "\nGPU (every stage) on {}; GPU memory held {:.1} MiB; medians in ms (wall clock, then GPU timestamps)",
             g.adapter,

@@ -5,17 +5,38 @@ use fluidcast_io::Input;
 use fluidcast_sph::suggest_support_radius;
 use serde_json::json;
 
+/// Prints the adapters, best first, and where `--backend auto` renders.
+fn adapters() -> Result<()> {
+    let list = fluidcast_backend::list_adapters();
+    if list.is_empty() {
+        out!("no GPU adapters");
+    }
+    for (k, a) in list.iter().enumerate() {
+        out!("adapter {k}: {a}");
+    }
+    let auto = fluidcast_backend::Renderer::open(fluidcast_backend::Backend::Auto, None)?;
+    out!("--backend auto renders on: {}", auto.device());
+    Ok(())
+}
+
 #[derive(clap::Args)]
 pub struct InfoArgs {
     /// A .vtu, .vtp, .vtk file or a .pvd series (its first frame is described).
-    input: PathBuf,
+    #[arg(required_unless_present = "adapters")]
+    input: Option<PathBuf>,
+    /// List the GPU adapters fluidcast finds, best first, and what --backend auto picks.
+    #[arg(long)]
+    adapters: bool,
     /// Print one JSON object.
     #[arg(long)]
     json: bool,
 }
 
 pub fn run(a: InfoArgs) -> Result<()> {
-    let input = Input::open(&a.input)?;
+    let Some(path) = a.input.as_ref().filter(|_| !a.adapters) else {
+        return adapters();
+    };
+    let input = Input::open(path)?;
     let frames = input.frames();
     let ds = input.read(&frames[0].1)?;
     let nonfinite = ds

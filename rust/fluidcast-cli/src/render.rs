@@ -4,14 +4,15 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
 use fluidcast_io::Input;
-use fluidcast_render::{render_adaptive, render_reference, RenderParams, RenderStats};
+use fluidcast_render::{render_reference, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
-use crate::view::{Backend, Mode, SamplingArgs, ViewArgs};
+use crate::view::{Mode, SamplingArgs, ViewArgs};
+use fluidcast_backend::{Backend, Renderer};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -49,7 +50,8 @@ pub struct RenderArgs {
     aovs: bool,
 }
 
-/// Renders one frame with the chosen renderer; `gpu` casts the adaptive renderer's rays.
+/// Renders one frame with the chosen renderer: the reference renderer, or the adaptive one
+/// on the opened backend.
 pub fn render_frame(
     particles: &Particles,
     surface: Option<&[bool]>,
@@ -57,45 +59,36 @@ pub fn render_frame(
     tf: &TransferFunction,
     params: &RenderParams,
     mode: Mode,
-    gpu: Option<&fluidcast_gpu::Gpu>,
+    renderer: &Renderer,
 ) -> Result<(Image, RenderStats)> {
-    Ok(match (mode, gpu) {
-        (Mode::Reference, _) => render_reference(particles, camera, tf, params)?,
-        (Mode::Adaptive, None) => {
-            let r = render_adaptive(particles, surface, camera, tf, params)?;
-            (r.image, r.stats)
-        }
-        (Mode::Adaptive, Some(g)) => {
-            let r = g.render_adaptive(particles, surface, camera, tf, params)?;
+    Ok(match mode {
+        Mode::Reference => render_reference(particles, camera, tf, params)?,
+        Mode::Adaptive => {
+            let r = renderer.render(particles, surface, camera, tf, params)?;
             (r.image, r.stats)
         }
     })
 }
 
-/// Opens the GPU for `--backend gpu|auto` (adaptive mode only).
-pub fn open_gpu(backend: Backend, mode: Mode) -> Result<Option<fluidcast_gpu::Gpu>> {
-    match (backend, mode) {
-        (Backend::Cpu, _) => Ok(None),
+/// Opens the backend for the adaptive renderer (the reference renderer runs on the CPU), and
+/// says where frames render.
+pub fn open_backend(s: &SamplingArgs) -> Result<Renderer> {
+    let r = match (s.backend, s.mode) {
         (Backend::Gpu, Mode::Reference) => {
             bail!("--backend gpu renders the adaptive mode only (drop --mode reference)")
         }
-        (Backend::Auto, Mode::Reference) => Ok(None),
-        (Backend::Gpu, Mode::Adaptive) => {
-            let g = fluidcast_gpu::Gpu::new().context("--backend gpu")?;
-            eprintln!("GPU: {}", g.adapter);
-            Ok(Some(g))
+        (_, Mode::Reference) => Renderer::cpu(),
+        (b, Mode::Adaptive) => {
+            Renderer::open(b, s.adapter.as_deref()).with_context(|| format!("--backend {b}"))?
         }
-        (Backend::Auto, Mode::Adaptive) => match fluidcast_gpu::Gpu::new() {
-            Ok(g) => {
-                eprintln!("GPU: {}", g.adapter);
-                Ok(Some(g))
-            }
-            Err(e) => {
-                eprintln!("note: --backend auto: {e}; rendering on the CPU");
-                Ok(None)
-            }
-        },
+    };
+    if let Some(n) = r.note() {
+        eprintln!("note: {n}");
     }
+    if r.gpu().is_some() {
+        eprintln!("{}", r.device());
+    }
+    Ok(r)
 }
 
 fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<()> {
@@ -296,7 +289,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
         pb
     });
-    let gpu = open_gpu(a.sampling.backend, a.sampling.mode)?;
+    let renderer = open_backend(&a.sampling)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
     for &fi in &frames {
@@ -333,7 +326,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             &tf,
             &params,
             a.sampling.mode,
-            gpu.as_ref(),
+            &renderer,
         )
         .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));

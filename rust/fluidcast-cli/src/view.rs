@@ -63,27 +63,20 @@ pub enum Mode {
     Reference,
 }
 
-/// Where the adaptive renderer's ray casting runs.
-#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Backend {
-    /// Everything on the CPU.
-    Cpu,
-    /// Ray casting on the GPU (wgpu; grid and sampling plan still on the CPU).
-    Gpu,
-    /// The GPU if a wgpu adapter exists, else the CPU.
-    Auto,
-}
-
 #[derive(clap::Args, Debug, Clone)]
 pub struct SamplingArgs {
     /// Renderer.
     #[arg(long, value_enum, default_value = "adaptive")]
     pub mode: Mode,
-    /// Where the adaptive renderer casts rays: cpu, gpu (wgpu compute; a software Vulkan
-    /// such as Mesa's lavapipe works too) or auto. The grid and the sampling plan are built
-    /// on the CPU either way.
-    #[arg(long, value_enum, default_value = "cpu")]
-    pub backend: Backend,
+    /// Where the adaptive renderer runs: auto (a hardware GPU if there is one, else the CPU
+    /// with a note), cpu, or gpu (every stage in wgpu compute, f32; a software Vulkan such as
+    /// Mesa's lavapipe counts too).
+    #[arg(long, default_value = "auto")]
+    pub backend: fluidcast_backend::Backend,
+    /// The GPU adapter to use, by a part of its name (e.g. nvidia, llvmpipe); also from the
+    /// FLUIDCAST_ADAPTER environment variable. `fluidcast info --adapters` lists them.
+    #[arg(long)]
+    pub adapter: Option<String>,
     /// Screen-space error tolerance E_I: the largest change, per colour or alpha channel
     /// (0..1; 0.004 ≈ 1 level of 255), that adaptive sampling may make against full-rate
     /// sampling of the same grid, or `off` for full rate everywhere.

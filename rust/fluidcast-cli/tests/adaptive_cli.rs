@@ -194,4 +194,26 @@ fn gpu_backend_from_the_command_line() {
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();
     let frac = v["frac_above"].as_f64().unwrap();
     assert!(frac <= 1e-3, "GPU vs CPU: {out}");
+    // auto: the GPU when `info --adapters` lists a hardware one, else the CPU with a note.
+    let (ok, out, err) = run(&["info", "--adapters"]);
+    assert!(ok, "{err}");
+    let hardware = out
+        .lines()
+        .any(|l| l.starts_with("adapter ") && !l.contains("software"));
+    let (ok, err) = try_render(&dir.join("auto.exr"), &["--backend", "auto"]);
+    assert!(ok, "{err}");
+    if std::env::var_os("FLUIDCAST_ADAPTER").is_none() {
+        assert_eq!(err.contains("GPU: "), hardware, "{out}\n{err}");
+        assert_eq!(
+            err.contains("rendering on the CPU"),
+            !hardware,
+            "{out}\n{err}"
+        );
+    }
+    // An adapter no machine has: an error naming it.
+    let (ok, err) = try_render(
+        &dir.join("n.exr"),
+        &["--backend", "gpu", "--adapter", "no-such-gpu"],
+    );
+    assert!(!ok && err.contains("'no-such-gpu'"), "{err}");
 }

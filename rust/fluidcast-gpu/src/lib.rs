@@ -22,6 +22,7 @@
 //! Runs headless on any wgpu adapter, Mesa's lavapipe (CPU Vulkan) included; [`Gpu::new`]
 //! says why when there is none.
 
+mod adapter;
 mod stages;
 
 use std::collections::HashMap;
@@ -30,13 +31,18 @@ use std::sync::Mutex;
 use bytemuck::Pod;
 use fluidcast_render::{RenderError, RenderStats};
 
-pub use stages::{GpuDump, GpuRender};
+pub use adapter::{list_adapters, AdapterChoice, ADAPTER_ENV};
+pub use stages::GpuDump;
 
 /// Why the GPU path could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
     #[error("no GPU adapter found (wgpu: {0}); on a machine without a GPU install Mesa's lavapipe (Debian: mesa-vulkan-drivers)")]
     NoAdapter(String),
+    #[error("no hardware GPU (adapters: {0})")]
+    NoHardware(String),
+    #[error("no GPU adapter's name contains '{0}' (adapters: {1})")]
+    NoSuchAdapter(String, String),
     #[error("GPU device: {0}")]
     Device(String),
     #[error("the GPU renderer supports ray bundles of at most 8x8 pixels (--bundle {0})")]
@@ -116,14 +122,15 @@ const RW: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
     .union(wgpu::BufferUsages::COPY_SRC);
 
 impl Gpu {
-    /// Opens the default adapter (high performance preferred) and compiles the shaders.
+    /// Opens the adapter named by `FLUIDCAST_ADAPTER` if set, else the best one of any kind
+    /// (see [`AdapterChoice::Any`]), and compiles the shaders.
     pub fn new() -> Result<Gpu, GpuError> {
-        let instance = wgpu::Instance::default();
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            ..Default::default()
-        }))
-        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        Gpu::open(&AdapterChoice::from_env().unwrap_or(AdapterChoice::Any))
+    }
+
+    /// Opens the adapter `choice` picks and compiles the shaders.
+    pub fn open(choice: &AdapterChoice) -> Result<Gpu, GpuError> {
+        let adapter = adapter::pick(choice)?;
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let limits = adapter.limits();
@@ -204,11 +211,12 @@ impl Gpu {
             device,
             queue,
             pipes,
-            adapter: format!("{} ({:?})", info.name, info.backend),
+            adapter: adapter::name(&adapter),
             timestamps,
             buffers: Default::default(),
             frame_lock: Mutex::new(()),
-            max_binding: (limits.max_storage_buffer_binding_size as u64)
+            max_binding: limits
+                .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
             loop_limit: if info.device_type == wgpu::DeviceType::Cpu {
                 SOFTWARE_LOOP_LIMIT

@@ -9,6 +9,7 @@ use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, PlanError, PlanStats};
 use fluidcast_render::{
     bundle_aovs, ms, plan_surface, validate, AdaptivePlan, RenderError, RenderParams, RenderStats,
+    Rendered,
 };
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction, ViewFrame};
@@ -90,14 +91,6 @@ struct GpuSpan {
 /// Bytes per cell of the error analysis' bounds: (lo, hi) vec4 for 7 levels.
 const BOUND_BYTES: u64 = 7 * 32;
 
-/// An image rendered on the GPU and its statistics (stage timings: wall-clock `grid`, `adapt`,
-/// `raycast`, `total`; GPU-side `gpu_*` where the adapter has timestamps).
-#[derive(Debug, Clone)]
-pub struct GpuRender {
-    pub image: Image,
-    pub stats: RenderStats,
-}
-
 /// The GPU's grid and plan of one frame, read back to compare with the CPU's
 /// ([`fluidcast_grid::PerspectiveGrid`], [`fluidcast_plan::SamplingPlan`]).
 #[derive(Debug, Clone, Default)]
@@ -166,7 +159,9 @@ const SUMS: [&str; 5] = [
 ];
 
 impl Gpu {
-    /// Renders like [`fluidcast_render::render_adaptive`], every stage on the GPU.
+    /// Renders like [`fluidcast_render::render_adaptive`], every stage on the GPU. Stage
+    /// timings: wall-clock `grid`, `adapt`, `raycast`, `total`, and the GPU's own `gpu_grid`,
+    /// `gpu_sort`, `gpu_adapt`, `gpu_raycast` where the adapter has timestamp queries.
     pub fn render_adaptive(
         &self,
         particles: &Particles,
@@ -174,7 +169,7 @@ impl Gpu {
         camera: &Camera,
         tf: &TransferFunction,
         params: &RenderParams,
-    ) -> Result<GpuRender, GpuError> {
+    ) -> Result<Rendered, GpuError> {
         Ok(self.run(particles, surface, camera, tf, params, false)?.0)
     }
 
@@ -186,7 +181,7 @@ impl Gpu {
         camera: &Camera,
         tf: &TransferFunction,
         params: &RenderParams,
-    ) -> Result<(GpuRender, GpuDump), GpuError> {
+    ) -> Result<(Rendered, GpuDump), GpuError> {
         let (r, d) = self.run(particles, surface, camera, tf, params, true)?;
         Ok((r, d.unwrap_or_default()))
     }
@@ -198,7 +193,7 @@ impl Gpu {
         planned: &AdaptivePlan,
         tf: &TransferFunction,
         params: &RenderParams,
-    ) -> Result<GpuRender, GpuError> {
+    ) -> Result<Rendered, GpuError> {
         let _frame = self.frame_lock.lock().expect("frame lock");
         let t0 = Instant::now();
         check_supported(params, tf)?;
@@ -206,7 +201,7 @@ impl Gpu {
         let mut stats = planned.stats.clone();
         let mut image = Image::new(params.width, params.height);
         let Some(depths) = &grid.depths else {
-            return Ok(GpuRender { image, stats });
+            return Ok(Rendered { image, stats });
         };
         let mut timer = Timer {
             queries: self.timestamps.as_ref(),
@@ -287,7 +282,7 @@ impl Gpu {
         stats.gpu_memory_bytes = self.memory_bytes();
         image.aovs = fluidcast_render::plan_aovs(grid, plan, params.width, params.height);
         push_stage(&mut stats, "total", ms(t0));
-        Ok(GpuRender { image, stats })
+        Ok(Rendered { image, stats })
     }
 
     fn run(
@@ -298,7 +293,7 @@ impl Gpu {
         tf: &TransferFunction,
         params: &RenderParams,
         dump: bool,
-    ) -> Result<(GpuRender, Option<GpuDump>), GpuError> {
+    ) -> Result<(Rendered, Option<GpuDump>), GpuError> {
         let _frame = self.frame_lock.lock().expect("frame lock");
         let t0 = Instant::now();
         validate(params)?;
@@ -338,7 +333,7 @@ impl Gpu {
         let empty = |mut stats: RenderStats, image: Image| {
             stats.gpu_memory_bytes = self.memory_bytes();
             stats.stages.push(("total", ms(t0)));
-            Ok((GpuRender { image, stats }, dump.then(GpuDump::default)))
+            Ok((Rendered { image, stats }, dump.then(GpuDump::default)))
         };
         if n == 0 {
             return empty(stats, image);
@@ -652,7 +647,7 @@ impl Gpu {
         self.finish_timers(&timer, &mut stats)?;
         stats.gpu_memory_bytes = self.memory_bytes();
         push_stage(&mut stats, "total", ms(t0));
-        Ok((GpuRender { image, stats }, dumped))
+        Ok((Rendered { image, stats }, dumped))
     }
 
     fn encoder(&self) -> wgpu::CommandEncoder {

@@ -339,7 +339,7 @@ fn gpu_buffers_are_reused_across_frames() {
     let mut held = Vec::new();
     for seed in 1..=4 {
         let p = cloud(3000, seed);
-        let r: fluidcast_gpu::GpuRender = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let r = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         held.push(r.stats.gpu_memory_bytes);
         // GPU stage timings appear exactly when the adapter has timestamp queries.
         for stage in ["gpu_grid", "gpu_sort", "gpu_adapt", "gpu_raycast"] {

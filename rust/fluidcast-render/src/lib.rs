@@ -113,6 +113,14 @@ pub enum RenderError {
     DepthLimitValue,
 }
 
+/// A rendered frame: the image and what it took. What every backend returns (the CPU renderers
+/// here, `fluidcast-gpu`, and `fluidcast-backend`, which chooses between them).
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    pub image: fluidcast_image::Image,
+    pub stats: RenderStats,
+}
+
 /// Timings and counts of one rendering.
 #[derive(Debug, Clone, Default)]
 pub struct RenderStats {
