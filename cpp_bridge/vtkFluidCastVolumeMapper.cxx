@@ -89,6 +89,17 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
 {
   this->SetRadiusArray(nullptr);
   this->SetKernel(nullptr);
+  this->SetAdapter(nullptr);
+}
+
+//------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetBackendAsString()
+{
+  // The names and their order come from the Rust side (fluidcast_backend::Backend::NAMES).
+  rust::Vec<rust::String> names = fluidcast::backend_names();
+  return this->Backend >= 0 && static_cast<size_t>(this->Backend) < names.size()
+    ? std::string(names[this->Backend])
+    : std::string("?");
 }
 
 //------------------------------------------------------------------------------
@@ -246,6 +257,8 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
     s.kernel = this->Kernel ? this->Kernel : "cubic";
     s.field = "csph";
     s.error_tolerance = this->ErrorTolerance;
+    s.backend = this->Backend;
+    s.adapter = this->Adapter ? this->Adapter : "";
     r.configure(s);
     fluidcast::RenderInfo info = r.prepare();
     this->LastParticleCount = static_cast<vtkIdType>(info.particles);
@@ -402,6 +415,13 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       rust::Slice<float>(rgba.data(), rgba.size()), rust::Slice<float>(depth.data(), depth.size()));
     this->LastSamples = static_cast<vtkIdType>(info.samples);
     this->LastRenderMilliseconds = info.total_ms;
+    std::string device(info.device);
+    if (device != this->LastDevice)
+    {
+      // Once per change of device, with the reason when auto fell back to the CPU.
+      vtkDebugMacro(<< "rendering on " << device << "; " << std::string(info.notes));
+      this->LastDevice = device;
+    }
   }
   catch (const rust::Error& e)
   {
@@ -439,6 +459,9 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "RadiusScale: " << this->RadiusScale << "\n";
   os << indent << "Kernel: " << (this->Kernel ? this->Kernel : "(none)") << "\n";
   os << indent << "ErrorTolerance: " << this->ErrorTolerance << "\n";
+  os << indent << "Backend: " << this->GetBackendAsString() << "\n";
+  os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
+  os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";
   os << indent << "LastParticleCount: " << this->LastParticleCount << "\n";

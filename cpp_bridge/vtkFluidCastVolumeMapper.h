@@ -23,6 +23,11 @@
  * of opaque geometry drawn before it: rays stop at the depth buffer, so particles behind a
  * surface are hidden and particles in front of it cover it.
  *
+ * Frames render on the CPU or on a GPU (wgpu compute, f32) as Backend says: AUTO (default)
+ * takes a hardware GPU when there is one and the CPU otherwise, never a software driver; GPU
+ * takes the best adapter of any kind (Mesa's lavapipe too). The GPU device, its pipelines and
+ * buffers are opened on the first frame and live as long as the mapper.
+ *
  * Errors (no points, missing array, NaN radius, ...) are reported with vtkErrorMacro naming
  * the problem; nothing is drawn then.
  */
@@ -33,6 +38,7 @@
 #include "vtkAbstractVolumeMapper.h"
 
 #include <memory> // for std::unique_ptr
+#include <string> // for std::string
 
 class vtkPointSet;
 class vtkRenderer;
@@ -90,6 +96,36 @@ public:
   vtkGetMacro(ErrorTolerance, double);
   ///@}
 
+  /** Where frames render (see the class description). */
+  enum BackendType
+  {
+    AUTO = 0,
+    CPU = 1,
+    GPU = 2
+  };
+
+  ///@{
+  /**
+   * Where frames render: AUTO (default: a hardware GPU, else the CPU), CPU or GPU.
+   */
+  vtkSetClampMacro(Backend, int, AUTO, GPU);
+  vtkGetMacro(Backend, int);
+  void SetBackendToAuto() { this->SetBackend(AUTO); }
+  void SetBackendToCPU() { this->SetBackend(CPU); }
+  void SetBackendToGPU() { this->SetBackend(GPU); }
+  /** "auto", "cpu" or "gpu" (the names fluidcast's CLI takes for --backend). */
+  std::string GetBackendAsString();
+  ///@}
+
+  ///@{
+  /**
+   * A GPU adapter by a part of its name ("nvidia", "llvmpipe", ...); empty/null (default): the
+   * best one (the FLUIDCAST_ADAPTER environment variable applies then).
+   */
+  vtkSetStringMacro(Adapter);
+  vtkGetStringMacro(Adapter);
+  ///@}
+
   ///@{
   /**
    * How a vector array becomes a scalar: vtkSmartVolumeMapper's DISABLED (-1, default:
@@ -111,6 +147,8 @@ public:
   vtkGetMacro(LastMaxRadius, double);
   vtkGetMacro(LastSamples, vtkIdType);
   vtkGetMacro(LastRenderMilliseconds, double);
+  /** Where the last frame rendered: "CPU (N threads)" or "GPU: <adapter>". */
+  const char* GetLastDevice() { return this->LastDevice.c_str(); }
   ///@}
 
   /**
@@ -133,6 +171,8 @@ protected:
   double RadiusScale = 1.0;
   char* Kernel = nullptr;
   double ErrorTolerance = 0.004;
+  int Backend = AUTO;
+  char* Adapter = nullptr;
   int VectorMode = -1;
   int VectorComponent = 0;
 
@@ -140,6 +180,7 @@ protected:
   double LastMaxRadius = 0.0;
   vtkIdType LastSamples = 0;
   double LastRenderMilliseconds = 0.0;
+  std::string LastDevice;
 
 private:
   vtkFluidCastVolumeMapper(const vtkFluidCastVolumeMapper&) = delete;

@@ -178,6 +178,16 @@ void vtkFluidCastRepresentation::SetErrorTolerance(double e)
   this->Mapper->SetErrorTolerance(e);
 }
 
+void vtkFluidCastRepresentation::SetBackend(int backend)
+{
+  this->Mapper->SetBackend(backend);
+}
+
+void vtkFluidCastRepresentation::SetAdapter(const char* name)
+{
+  this->Mapper->SetAdapter(name && name[0] ? name : nullptr);
+}
+
 //------------------------------------------------------------------------------
 void vtkFluidCastRepresentation::PrintSelf(ostream& os, vtkIndent indent)
 {

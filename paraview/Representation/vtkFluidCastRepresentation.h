@@ -37,14 +37,20 @@ public:
    * Forwarded to vtkFluidCastVolumeMapper. SupportRadius <= 0 means "from RadiusArray, else
    * the field data support_radius, else from the particle spacing". RadiusArray "" or "None"
    * means no radius array. Kernel: 0 cubic, 1 quintic, 2 Wendland C2, 3 Wendland C4, 4 poly6,
-   * 5 Gaussian.
+   * 5 Gaussian. Backend: vtkFluidCastVolumeMapper::AUTO, CPU or GPU; Adapter: a GPU by a part
+   * of its name ("" = the best).
    */
   void SetSupportRadius(double h);
   void SetRadiusArray(const char* name);
   void SetRadiusScale(double s);
   void SetKernel(int kernel);
   void SetErrorTolerance(double e);
+  void SetBackend(int backend);
+  void SetAdapter(const char* name);
   ///@}
+
+  /** The mapper, for scripts that read LastDevice, LastSamples, ... */
+  vtkFluidCastVolumeMapper* GetFluidCastMapper() { return this->Mapper; }
 
 protected:
   vtkFluidCastRepresentation();

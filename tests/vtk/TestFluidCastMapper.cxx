@@ -534,6 +534,82 @@ int Bad(const std::string& data)
 }
 } // namespace
 
+/**
+ * The mapper's Backend: the same scene in the same window on the CPU and on the GPU (any
+ * adapter; Mesa's lavapipe on CI) within 2/255, the device kept between frames, and Auto on
+ * the CPU unless a hardware GPU is listed.
+ */
+int Backends(const std::string& data, const std::string& array, const std::string& out)
+{
+  if (!Exists(data))
+  {
+    std::cerr << "FAIL: " << data << " not present\n";
+    return 1;
+  }
+  auto ug = Read(data);
+  double range[2];
+  ug->GetPointData()->GetArray(array.c_str())->GetRange(range, -1);
+  Scene s;
+  s.ren->SetBackground(1, 1, 1);
+  s.mapper->SetInputData(ug);
+  s.mapper->SelectScalarArray(array.c_str());
+  s.mapper->SetScalarModeToUsePointFieldData();
+  s.volume->SetProperty(Property(MakeTF(range[0], range[1]), 0.1));
+  double b[6];
+  s.mapper->GetBounds(b);
+  SetupCamera(s, b);
+  const char* names[] = { "auto", "cpu", "gpu" };
+  for (int k = vtkFluidCastVolumeMapper::AUTO; k <= vtkFluidCastVolumeMapper::GPU; ++k)
+  {
+    s.mapper->SetBackend(k);
+    if (s.mapper->GetBackendAsString() != names[k])
+    {
+      std::cerr << "FAIL: backend " << k << " is named " << s.mapper->GetBackendAsString() << "\n";
+      return 1;
+    }
+  }
+  s.mapper->SetBackendToCPU();
+  s.win->Render();
+  Image cpu = Grab(s.win);
+  const std::string cpuDevice = s.mapper->GetLastDevice();
+  s.mapper->SetBackendToGPU();
+  s.win->Render();
+  Image gpu = Grab(s.win);
+  const std::string gpuDevice = s.mapper->GetLastDevice();
+  WritePng(cpu, out + "/cpu.png");
+  WritePng(gpu, out + "/gpu.png");
+  s.win->Render(); // a second GPU frame, on the device kept from the first
+  s.mapper->SetBackendToAuto();
+  s.win->Render();
+  const std::string autoDevice = s.mapper->GetLastDevice();
+  std::cout << "CPU: " << cpuDevice << "; GPU: " << gpuDevice << "; Auto: " << autoDevice << "\n";
+  if (cpuDevice.rfind("CPU", 0) != 0 || gpuDevice.rfind("GPU: ", 0) != 0)
+  {
+    std::cerr << "FAIL: the frames did not render where asked\n";
+    return 1;
+  }
+  const bool software = gpuDevice.find("software") != std::string::npos;
+  if (software && autoDevice.rfind("CPU", 0) != 0)
+  {
+    std::cerr << "FAIL: Auto took the software driver\n";
+    return 1;
+  }
+  Diff d = Compare(cpu, gpu);
+  size_t drawn = 0;
+  for (size_t k = 0; k < cpu.rgb.size(); k += 3)
+  {
+    drawn += cpu.rgb[k] != 255 || cpu.rgb[k + 1] != 255 || cpu.rgb[k + 2] != 255;
+  }
+  std::cout << "GPU vs CPU in a VTK window: max abs " << d.max << "/255, mean " << d.mean
+            << "/255; " << drawn << " pixels drawn\n";
+  if (drawn < static_cast<size_t>(W * H / 20))
+  {
+    std::cerr << "FAIL: the mapper drew almost nothing\n";
+    return 1;
+  }
+  return d.max <= 2 ? 0 : 1;
+}
+
 int main(int argc, char* argv[])
 {
   const std::string mode = argc > 1 ? argv[1] : "";
@@ -549,7 +625,11 @@ int main(int argc, char* argv[])
   {
     return Bad(argv[2]);
   }
+  if (mode == "backend" && argc == 5)
+  {
+    return Backends(argv[2], argv[3], argv[4]);
+  }
   std::cerr << "usage: TestFluidCastMapper window DATA ARRAY OUTDIR CLI TOLERANCE | depth DATA ARRAY "
-               "OUTDIR | bad DATA\n";
+               "OUTDIR | bad DATA | backend DATA ARRAY OUTDIR\n";
   return 2;
 }

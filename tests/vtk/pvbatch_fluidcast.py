@@ -2,11 +2,13 @@
 representation, save a screenshot and compare it with `fluidcast render` for the same camera,
 colour map and opacity function.
 
-    pvbatch pvbatch_fluidcast.py PLUGIN.so DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE
+    pvbatch pvbatch_fluidcast.py PLUGIN.so DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE [BACKEND]
 
 TOLERANCE is the representation's error tolerance (a number; 0 = full rate). The images must
 agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive (as the VTK window
-test). Exit code 0 pass, 1 fail, 77 skipped (data not present).
+test). BACKEND (Auto, CPU or GPU; default Auto) sets FluidCastBackend; with GPU the view is
+also rendered with CPU and the two screenshots must agree within 2/255. Exit code 0 pass,
+1 fail, 77 skipped (data not present).
 """
 import json
 import math
@@ -21,6 +23,7 @@ from vtkmodules.vtkIOImage import vtkPNGReader
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 plugin, data, array, out, cli, tolerance = sys.argv[1:7]
+backend = sys.argv[7] if len(sys.argv) > 7 else "Auto"
 tolerance = float(tolerance)
 if not os.path.exists(data):
     print(f"SKIP: {data} not present")
@@ -53,6 +56,7 @@ pwf.RescaleTransferFunction(lo, hi)
 display.ScalarOpacityFunction = pwf
 display.ScalarOpacityUnitDistance = 0.1
 display.FluidCastErrorTolerance = tolerance
+display.FluidCastBackend = backend
 # No radius set: the file's support_radius field data (or the spacing-based suggestion).
 
 view.ResetCamera()
@@ -77,7 +81,8 @@ cli_png = os.path.join(out, "cli.png")
 cmd = [cli, "render", data, "--array", f"{array}:mag", "--tf", os.path.join(out, "tf.json"),
        "--range", f"{lo!r},{hi!r}", "--camera", os.path.join(out, "camera.json"),
        "--size", f"{W}x{H}", "--opacity-unit-distance", "0.1", "--background", "1,1,1",
-       "--error-tolerance", "off" if tolerance <= 0 else str(tolerance), "-o", cli_png]
+       "--error-tolerance", "off" if tolerance <= 0 else str(tolerance), "--backend", "cpu",
+       "-o", cli_png]
 print(" ".join(cmd))
 subprocess.run(cmd, check=True)
 
@@ -101,6 +106,23 @@ allowed = math.ceil(2 * tolerance * 255) + 1 if tolerance > 0 else 2
 print(f"ParaView vs CLI: max abs {d.max()}/255, mean {d.mean():.4f}/255, "
       f"{int((d > 2).sum())} channels above 2/255; {drawn} pixels drawn; allowed {allowed}/255")
 status = 0 if d.max() <= allowed else 1
+if backend == "GPU":
+    display.FluidCastBackend = "CPU"
+    Render(view)
+    cpu_shot = os.path.join(out, "paraview_cpu.png")
+    SaveScreenshot(cpu_shot, view, ImageResolution=[W, H], TransparentBackground=0)
+    g = abs(read(cpu_shot) - a)
+    print(f"FluidCastBackend GPU vs CPU: max abs {g.max()}/255, mean {g.mean():.5f}/255")
+    status = status or (0 if g.max() <= 2 else 1)
+    # The properties reach the mapper: a GPU adapter nobody has draws nothing (an error).
+    display.FluidCastBackend = "GPU"
+    display.FluidCastAdapter = "no-such-gpu"
+    Render(view)
+    none_shot = os.path.join(out, "paraview_no_adapter.png")
+    SaveScreenshot(none_shot, view, ImageResolution=[W, H], TransparentBackground=0)
+    drawn_none = int((read(none_shot) != 255).any(axis=1).sum())
+    print(f"FluidCastAdapter 'no-such-gpu': {drawn_none} pixels drawn (expected none)")
+    status = status or (0 if drawn_none == 0 else 1)
 if drawn < W * H // 20:
     print("FAIL: the representation drew almost nothing")
     status = 1

@@ -21,8 +21,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
+use fluidcast_backend::Backend;
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
-use fluidcast_render::{render_adaptive, PlanParams, RenderParams, SURFACE_THRESHOLD};
+use fluidcast_render::{PlanParams, RenderParams, SURFACE_THRESHOLD};
 use fluidcast_sph::{
     Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
@@ -61,6 +62,10 @@ mod ffi {
         field: String,
         /// Screen-space error tolerance E_I (0..1); <= 0 renders every cell at full rate.
         error_tolerance: f64,
+        /// Where frames render: an index into `backend_names()` (0 auto, 1 cpu, 2 gpu).
+        backend: i32,
+        /// A GPU adapter by a part of its name ("" = the best; FLUIDCAST_ADAPTER applies).
+        adapter: String,
     }
 
     /// What a render did (for the mapper's messages and tests).
@@ -74,8 +79,11 @@ mod ffi {
         value_max: f64,
         samples: u64,
         total_ms: f64,
-        /// How radius and volumes were chosen (one line each).
+        /// How radius and volumes were chosen (one line each), and why `auto` rendered on
+        /// the CPU when it did.
         notes: String,
+        /// Where the frame rendered: "CPU (N threads)" or "GPU: <adapter>".
+        device: String,
     }
 
     extern "Rust" {
@@ -96,7 +104,11 @@ mod ffi {
         /// Values, tuple after tuple.
         fn array_values(self: &ParticleFile, field_data: bool, i: usize) -> &[f64];
 
-        /// The renderer: holds the particle data, settings, camera and transfer function.
+        /// The backend names `Settings::backend` indexes: auto, cpu, gpu.
+        fn backend_names() -> Vec<String>;
+
+        /// The renderer: holds the particle data, settings, camera and transfer function,
+        /// and the opened backend (a GPU device lives as long as the renderer).
         type Renderer;
 
         fn new_renderer() -> Box<Renderer>;
@@ -205,6 +217,28 @@ pub struct Renderer {
     prepared: Option<Prepared>,
     camera: Option<Camera>,
     tf: Option<TransferFunction>,
+    /// The backend opened for (backend, adapter), kept across frames.
+    backend: Option<OpenBackend>,
+}
+
+struct OpenBackend {
+    backend: Backend,
+    adapter: String,
+    renderer: fluidcast_backend::Renderer,
+}
+
+fn backend_names() -> Vec<String> {
+    Backend::NAMES.iter().map(|n| n.to_string()).collect()
+}
+
+/// The backend `Settings::backend` names.
+fn backend_of(index: i32) -> Result<Backend, String> {
+    usize::try_from(index)
+        .ok()
+        .and_then(|i| Backend::NAMES.get(i))
+        .ok_or_else(|| format!("backend {index}: expected 0 (auto), 1 (cpu) or 2 (gpu)"))?
+        .parse()
+        .map_err(|e: fluidcast_backend::BackendError| e.to_string())
 }
 
 /// Particles built from the current data and settings, with their surface flags.
@@ -221,6 +255,7 @@ fn new_renderer() -> Box<Renderer> {
         prepared: None,
         camera: None,
         tf: None,
+        backend: None,
     })
 }
 
@@ -348,6 +383,7 @@ impl Renderer {
                 .parse::<Kernel>()
                 .map_err(|e| format!("kernel: {e}"))?;
             parse_field(&s.field)?;
+            backend_of(s.backend)?;
             if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
                 return Err(format!(
                     "error tolerance {} must be below 1 (<= 0: off)",
@@ -467,6 +503,26 @@ impl Renderer {
         Ok(self.prepared.as_ref().expect("prepared above"))
     }
 
+    /// The backend for (backend, adapter), opened on first use and when either changes.
+    fn open_backend(&mut self, backend: Backend, adapter: &str) -> Result<(), String> {
+        let same = self
+            .backend
+            .as_ref()
+            .is_some_and(|b| b.backend == backend && b.adapter == adapter);
+        if !same {
+            self.backend = None;
+            let adapter_opt = (!adapter.is_empty()).then_some(adapter);
+            let renderer = fluidcast_backend::Renderer::open(backend, adapter_opt)
+                .map_err(|e| format!("backend {backend}: {e}"))?;
+            self.backend = Some(OpenBackend {
+                backend,
+                adapter: adapter.to_string(),
+                renderer,
+            });
+        }
+        Ok(())
+    }
+
     fn render(
         &mut self,
         width: u32,
@@ -507,9 +563,20 @@ impl Renderer {
             };
             let name = self.name();
             let t = Instant::now();
-            let p = self.prepared()?;
-            let r = render_adaptive(&p.particles, Some(&p.surface), &camera, &tf, &params)
-                .map_err(|e| format!("{name}: {e}"))?;
+            self.open_backend(backend_of(s.backend)?, &s.adapter)?;
+            self.prepared()?;
+            let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
+                return Err("fluidcast: particles or backend missing".into());
+            };
+            let device = b.renderer.device();
+            let r = b
+                .renderer
+                .render(&p.particles, Some(&p.surface), &camera, &tf, &params)
+                .map_err(|e| format!("{name} ({device}): {e}"))?;
+            let notes: Vec<&str> = [p.info.notes.as_str(), b.renderer.note().unwrap_or("")]
+                .into_iter()
+                .filter(|n| !n.is_empty())
+                .collect();
             for (k, px) in r.image.rgba.iter().enumerate() {
                 rgba[4 * k..4 * k + 4].copy_from_slice(px);
             }
@@ -517,6 +584,8 @@ impl Renderer {
             Ok(ffi::RenderInfo {
                 samples: r.stats.samples,
                 total_ms: t.elapsed().as_secs_f64() * 1e3,
+                notes: notes.join("\n"),
+                device,
                 ..p.info.clone()
             })
         })
@@ -596,6 +665,8 @@ mod tests {
             kernel: "cubic".into(),
             field: "csph".into(),
             error_tolerance: 0.004,
+            backend: 1,
+            adapter: String::new(),
         }
     }
 
@@ -637,7 +708,7 @@ mod tests {
             height: h,
             ..Default::default()
         };
-        let direct = render_adaptive(
+        let direct = fluidcast_render::render_adaptive(
             p,
             None,
             r.camera.as_ref().unwrap(),
@@ -648,6 +719,48 @@ mod tests {
         for (k, px) in direct.image.rgba.iter().enumerate() {
             assert_eq!(&rgba[4 * k..4 * k + 4], px);
         }
+    }
+
+    /// The GPU backend through the bridge: the CPU's image within the GPU tests' tolerance,
+    /// the device opened once and kept across frames, and bad backends refused.
+    #[test]
+    fn gpu_backend_renders_the_cpu_image_and_keeps_its_device() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let (w, h) = (40u32, 30u32);
+        let mut cpu = vec![0f32; 4 * 40 * 30];
+        let mut depth = vec![0f32; 40 * 30];
+        let info = r.render(w, h, &[], &mut cpu, &mut depth).unwrap();
+        assert!(info.device.starts_with("CPU"), "{}", info.device);
+        let mut s = settings();
+        s.backend = 2;
+        r.configure(&s).unwrap();
+        let mut gpu = vec![0f32; 4 * 40 * 30];
+        let info = match r.render(w, h, &[], &mut gpu, &mut depth) {
+            Ok(i) => i,
+            Err(e) if std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1") => {
+                return eprintln!("SKIPPED: {e}");
+            }
+            Err(e) => panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}"),
+        };
+        assert!(info.device.starts_with("GPU: "), "{}", info.device);
+        let max = cpu
+            .iter()
+            .zip(&gpu)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(max <= 1e-3, "GPU vs CPU through the bridge: max abs {max}");
+        let held = |r: &Renderer| {
+            let b = r.backend.as_ref().unwrap();
+            b.renderer.gpu().unwrap() as *const fluidcast_backend::Gpu
+        };
+        let first = held(&r);
+        r.render(w, h, &[], &mut gpu, &mut depth).unwrap();
+        assert_eq!(first, held(&r), "the GPU was reopened for the second frame");
+        s.backend = 7;
+        let e = r.configure(&s).unwrap_err();
+        assert!(e.contains("backend 7"), "{e}");
+        assert_eq!(backend_names(), ["auto", "cpu", "gpu"]);
     }
 
     #[test]
