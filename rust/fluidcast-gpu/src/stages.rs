@@ -819,8 +819,9 @@ impl Gpu {
         let b_limit = self.upload("depth limit", limits);
         let b_rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let b_depth = self.buffer("depth", 4 * n_px, RW, None);
-        let b_samples = self.buffer("samples", 4 * n_px, RW, None);
         let d = params.grid.bundle;
+        let bundles = (w.div_ceil(d) * h.div_ceil(d)) as u64;
+        let b_samples = self.buffer("samples", 4 * bundles, RW, None);
         self.submit_pass(timer, "gpu_raycast", |pass| {
             self.dispatch_2d(
                 pass,
@@ -847,7 +848,7 @@ impl Gpu {
         let got = self.fetch(&[
             (&b_rgba, 16 * n_px),
             (&b_depth, 4 * n_px),
-            (&b_samples, 4 * n_px),
+            (&b_samples, 4 * bundles),
             (&b.guard, 4),
         ])?;
         if cast::<u32>(&got[3])[0] != 0 {

@@ -13,7 +13,7 @@
 @group(0) @binding(9) var<storage, read> refs: array<u32>;
 @group(0) @binding(10) var<storage, read_write> out_rgba: array<vec4<f32>>;
 @group(0) @binding(11) var<storage, read_write> out_depth: array<f32>;
-@group(0) @binding(12) var<storage, read_write> out_samples: array<u32>;
+@group(0) @binding(12) var<storage, read_write> out_samples: array<u32>; // per bundle
 @group(0) @binding(13) var<storage, read> depth_limit: array<f32>;
 // [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
 @group(0) @binding(14) var<storage, read_write> guard: array<atomic<u32>>;
@@ -23,6 +23,13 @@ const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
 
 var<workgroup> cache_a: array<vec4<f32>, 64>;
 var<workgroup> cache_b: array<vec4<f32>, 64>;
+// Per cached particle: the samples [m0, m1) of its depth slab, found once by the invocation
+// that loads it instead of by all 64.
+var<workgroup> cache_m: array<vec2<u32>, 64>;
+// The span's sample depths (n + 1 <= 65), read from workgroup memory in the inner loops.
+var<workgroup> span_z: array<f32, 65>;
+// Samples composited by the workgroup's rays.
+var<workgroup> wg_samples: atomic<u32>;
 var<workgroup> all_done: atomic<u32>;
 var<workgroup> done_flag: u32;
 
@@ -53,24 +60,24 @@ fn span_refs(first: u32, count: u32) -> u32 {
     return n;
 }
 
-/// How many of the span's first n (<= 64) samples, at depths[k0 + m * step], lie below z
-/// (or at or below it, when `or_at`): a binary search written out without a loop.
-fn samples_below(k0: u32, step: u32, n: u32, z: f32, or_at: bool) -> u32 {
+/// How many of the span's first n (<= 64) samples, at span_z[m], lie below z (or at or below
+/// it, when `or_at`): a binary search written out without a loop.
+fn samples_below(n: u32, z: f32, or_at: bool) -> u32 {
     var lo = 0u;
-    lo = below_probe(k0, step, n, z, or_at, lo, 64u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 32u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 16u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 8u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 4u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 2u);
-    lo = below_probe(k0, step, n, z, or_at, lo, 1u);
+    lo = below_probe(n, z, or_at, lo, 64u);
+    lo = below_probe(n, z, or_at, lo, 32u);
+    lo = below_probe(n, z, or_at, lo, 16u);
+    lo = below_probe(n, z, or_at, lo, 8u);
+    lo = below_probe(n, z, or_at, lo, 4u);
+    lo = below_probe(n, z, or_at, lo, 2u);
+    lo = below_probe(n, z, or_at, lo, 1u);
     return lo;
 }
 
-fn below_probe(k0: u32, step: u32, n: u32, z: f32, or_at: bool, lo: u32, by: u32) -> u32 {
+fn below_probe(n: u32, z: f32, or_at: bool, lo: u32, by: u32) -> u32 {
     let m = lo + by;
     if (m <= n) {
-        let zm = depths[k0 + (m - 1u) * step];
+        let zm = span_z[m - 1u];
         if (zm < z || (or_at && zm == z)) {
             return m;
         }
@@ -165,6 +172,13 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             continue;
         }
         let n = span.n;
+        workgroupBarrier(); // the previous span's span_z is read no more
+        if (li <= n) {
+            span_z[li] = depths[span.k0 + li * span.step];
+        }
+        if (li == 0u && n == 64u) {
+            span_z[64] = depths[span.k0 + 64u * span.step];
+        }
         tick(n + 1u);
         for (var m = 0u; m < n; m = m + 1u) { // only samples 0..n are used
             weighted[m] = 0.0;
@@ -180,8 +194,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             tick(span.count + 1u); // span_ref, in the invocations that load
             if (li < cn) {
                 let pid = span_ref(span.first, span.count, c0 + li);
-                cache_a[li] = particles[2u * pid];
+                let pa = particles[2u * pid];
+                cache_a[li] = pa;
                 cache_b[li] = particles[2u * pid + 1u];
+                // Every ray's support interval lies in the slab of view depths
+                // [c.z - H, c.z + H] (padded for rounding), so the samples to visit are the
+                // same for all rays of the bundle: a uniform loop, short and countable.
+                let pad = 1.0e-4 * pa.w + 1.0e-6 * abs(pa.z);
+                cache_m[li] = vec2<u32>(samples_below(n, pa.z - pa.w - pad, false),
+                                        samples_below(n, pa.z + pa.w + pad, true));
             }
             workgroupBarrier();
             // The chunk, then the rest of the span, at most: stop before the driver would.
@@ -193,12 +214,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 for (var k = 0u; k < cn; k = k + 1u) {
                     let pa = cache_a[k];
                     let pb = cache_b[k];
-                    // Every ray's support interval lies in the slab of view depths
-                    // [c.z - H, c.z + H] (padded for rounding), so the samples to visit are the
-                    // same for all rays of the bundle: a uniform loop, short and countable.
-                    let pad = 1.0e-4 * pa.w + 1.0e-6 * abs(pa.z);
-                    let m0 = samples_below(span.k0, span.step, n, pa.z - pa.w - pad, false);
-                    let m1 = samples_below(span.k0, span.step, n, pa.z + pa.w + pad, true);
+                    let m0 = cache_m[k].x;
+                    let m1 = cache_m[k].y;
                     tick(2u + m1 - m0); // the k loop and the m loop, which also counts its exit
                     // The support interval from the closest approach (Ray::support_interval):
                     // no h² − |o − c|² cancellation, so f32 loses only ~1e-5 H at the edge.
@@ -212,7 +229,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                     let z0 = tc - half;
                     let z1 = tc + half;
                     for (var m = m0; m < m1; m = m + 1u) {
-                        let z = depths[span.k0 + m * span.step];
+                        let z = span_z[m];
                         if (!hits || z < z0 || z > z1) {
                             continue;
                         }
@@ -236,8 +253,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 var q = weighted[m] / shepard[m];
                 if (P.field == 1u) { q = weighted[m]; }
                 if (P.field == 2u) { q = density[m]; }
-                let za = depths[span.k0 + m * span.step];
-                let zb = min(depths[span.k0 + (m + 1u) * span.step], limit);
+                let za = span_z[m];
+                let zb = min(span_z[m + 1u], limit);
                 if (za >= limit) {
                     done = true;
                     break;
@@ -267,6 +284,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         let idx = j * P.width + i;
         out_rgba[idx] = vec4<f32>(color, 1.0 - trans);
         out_depth[idx] = depth_half;
-        out_samples[idx] = samples;
+    }
+    // The bundle's sample count, summed in workgroup memory (one value read back per bundle).
+    if (li == 0u) {
+        atomicStore(&wg_samples, 0u);
+    }
+    workgroupBarrier();
+    atomicAdd(&wg_samples, samples);
+    workgroupBarrier();
+    if (li == 0u) {
+        out_samples[b] = atomicLoad(&wg_samples);
     }
 }
