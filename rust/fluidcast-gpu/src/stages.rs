@@ -845,22 +845,24 @@ impl Gpu {
                 (w.div_ceil(d), h.div_ceil(d)),
             );
         });
-        let got = self.fetch(&[
+        let parts = [
             (&b_rgba, 16 * n_px),
             (&b_depth, 4 * n_px),
             (&b_samples, 4 * bundles),
             (&b.guard, 4),
-        ])?;
-        if cast::<u32>(&got[3])[0] != 0 {
+        ];
+        let guarded = self.fetch_with(&parts, |got| {
+            image.rgba = cast(got[0]);
+            image.depth = cast::<f32>(got[1]);
+            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
+                *z = f32::INFINITY;
+            }
+            stats.samples = cast::<u32>(got[2]).iter().map(|&s| s as u64).sum();
+            cast::<u32>(got[3])[0] != 0
+        })?;
+        if guarded {
             return Err(self.loop_limit_error("the grid, the error analysis or the ray casting"));
         }
-        image.rgba = cast(&got[0]);
-        let depth: Vec<f32> = cast(&got[1]);
-        image.depth = depth
-            .iter()
-            .map(|&z| if z > 1e29 { f32::INFINITY } else { z })
-            .collect();
-        stats.samples = cast::<u32>(&got[2]).iter().map(|&s| s as u64).sum();
         Ok(())
     }
 
