@@ -23,6 +23,7 @@
 //! says why when there is none.
 
 mod adapter;
+mod layout;
 mod stages;
 
 use std::collections::HashMap;
@@ -148,8 +149,8 @@ impl Gpu {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         // Constants the Rust side owns, then the shared WGSL.
         let common = format!(
-            "const MAX_TF_POINTS: u32 = {}u;\n{}",
-            MAX_TF_POINTS,
+            "{}{}",
+            layout::wgsl_prelude(),
             include_str!("shaders/common.wgsl")
         );
         let module = |name: &str, src: String| {

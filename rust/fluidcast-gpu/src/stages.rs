@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use fluidcast_grid::{depth_range, Cell, SampleDepths};
 use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, PlanError, PlanStats};
@@ -11,82 +11,12 @@ use fluidcast_render::{
     bundle_aovs, ms, plan_surface, validate, AdaptivePlan, RenderError, RenderParams, RenderStats,
     Rendered,
 };
-use fluidcast_sph::{FieldKind, Kernel, Particles};
-use fluidcast_view::{Camera, TransferFunction, ViewFrame};
+use fluidcast_sph::Particles;
+use fluidcast_view::{Camera, TransferFunction};
 use wgpu::util::DeviceExt;
 
+use crate::layout::{frame_uniform, FrameUniform, GpuCell, GpuSpan, GridCounters, PlanCounters};
 use crate::{cast, push_stage, Gpu, GpuError, QUERIES, RW};
-
-/// The frame's uniform parameters (`Frame` in common.wgsl; same field order).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct FrameUniform {
-    eye: [f32; 4],
-    right: [f32; 4],
-    up: [f32; 4],
-    forward: [f32; 4],
-    width: u32,
-    height: u32,
-    bundles_x: u32,
-    bundles_y: u32,
-    bundle: u32,
-    dz: u32,
-    cells_z: u32,
-    n_depths: u32,
-    aspect: f32,
-    tan_half: f32,
-    parallel_scale: f32,
-    min_transmittance: f32,
-    field: u32,
-    kernel: u32,
-    gauss_norm: f32,
-    n_colors: u32,
-    n_opacity: u32,
-    tf_lo: f32,
-    tf_hi: f32,
-    unit_distance: f32,
-    has_limit: u32,
-    n_particles: u32,
-    near: f32,
-    far: f32,
-    tolerance: f32,
-    relax: f32,
-    budget: f32,
-    superpixels: u32,
-    surface_rule: u32,
-    max_level: u32,
-    n_pairs: u32,
-    n_cells: u32,
-    loop_limit: u32,
-    pad: [u32; 3],
-}
-
-/// A grid cell and its bundle (`Cell` in common.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuCell {
-    z: u32,
-    start: u32,
-    unique_end: u32,
-    end: u32,
-    bundle: u32,
-    pad: [u32; 3],
-}
-
-/// A span of the plan (`Span` in common.wgsl).
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct GpuSpan {
-    first: u32,
-    count: u32,
-    level: u32,
-    superpixel: u32,
-    k0: u32,
-    n: u32,
-    step: u32,
-    pad: u32,
-    sp: [f32; 4],
-}
 
 /// Bytes per cell of the error analysis' bounds: (lo, hi) vec4 for 7 levels.
 const BOUND_BYTES: u64 = 7 * 32;
@@ -137,15 +67,6 @@ impl<'q> Timer<'q> {
             label: Some(name),
             timestamp_writes: writes,
         })
-    }
-}
-
-/// f32 from the order-preserving u32 of grid.wgsl's `ordered`.
-fn unordered(u: u32) -> f32 {
-    if u & 0x8000_0000 != 0 {
-        f32::from_bits(u & 0x7fff_ffff)
-    } else {
-        f32::from_bits(!u)
     }
 }
 
@@ -358,7 +279,7 @@ impl Gpu {
         let b_frame = self.frame_buffer(&u);
         let b_world = self.upload("world particles", &world);
         let b_vparts = self.buffer("view particles", 32 * n as u64, RW, None);
-        let b_counters = self.upload("counters", &[u32::MAX, 0, 0, 0, 0, 0, 0, 0]);
+        let b_counters = self.upload("counters", &[GridCounters::START]);
         let b_guard = self.upload("loop guard", &[0u32; 4]);
         let n32 = n as u32;
         self.submit_pass(&mut timer, "gpu_grid", |pass| {
@@ -374,8 +295,7 @@ impl Gpu {
                 n32.div_ceil(256),
             );
         });
-        let c: Vec<u32> = cast(&self.fetch(&[(&b_counters, 8)])?[0]);
-        let (zmin, zmax) = (unordered(c[0]) as f64, unordered(c[1]) as f64);
+        let (zmin, zmax) = self.counters(&b_counters)?.depth_range();
         let Some((near, far)) = depth_range(zmin, zmax, frame.parallel.is_none()) else {
             push_stage(&mut stats, "grid", ms(t0));
             return empty(stats, image);
@@ -418,9 +338,9 @@ impl Gpu {
             );
             self.scan(pass, &b_counts, n32, 0);
         });
-        let c: Vec<u32> = cast(&self.fetch(&[(&b_counters, 32)])?[0]);
-        stats.particles_visible = c[2] as usize;
-        let pairs = c[3] as u64 * 256 + c[4] as u64;
+        let c = self.counters(&b_counters)?;
+        stats.particles_visible = c.visible as usize;
+        let pairs = c.pairs();
         stats.pairs = pairs;
         if pairs == 0 {
             push_stage(&mut stats, "grid", ms(t0));
@@ -487,8 +407,7 @@ impl Gpu {
             sorted
         };
         self.queue.submit([enc.finish()]);
-        let c: Vec<u32> = cast(&self.fetch(&[(&b_counters, 32)])?[0]);
-        let ncells = c[5];
+        let ncells = self.counters(&b_counters)?.cells;
         stats.cells = ncells as u64;
         if ncells as u64 * BOUND_BYTES > self.max_binding {
             return Err(GpuError::TooManyCells(
@@ -518,7 +437,7 @@ impl Gpu {
         let b_spans = self.buffer("spans", 48 * nc, RW, None);
         let b_span_count = self.buffer("span counts", 4 * nb as u64, RW, None);
         let b_summaries = self.buffer("bundle summaries", 32 * nb as u64, RW, None);
-        let b_plan_stats = self.upload("plan stats", &[0u32; 16]);
+        let b_plan_stats = self.upload("plan stats", &[PlanCounters::zeroed()]);
         let tfb = self.tf_buffer(tf);
         let mut enc = self.encoder();
         {
@@ -592,16 +511,8 @@ impl Gpu {
         self.raycast(&b, params, &mut timer, &mut image, &mut stats)?;
         push_stage(&mut stats, "raycast", ms(t2));
         let got = self.fetch(&[(&b_plan_stats, 64), (&b_summaries, 32 * nb as u64)])?;
-        let ps: Vec<u32> = cast(&got[0]);
-        let plan = PlanStats {
-            cells: ncells as u64,
-            level_cells: std::array::from_fn(|l| ps[l] as u64),
-            superpixel_cells: ps[7] as u64,
-            surface_cells: ps[8] as u64,
-            merged_cells: ps[9] as u64,
-            refs_sampled: ps[10] as u64,
-        };
-        stats.plan = Some(plan);
+        let ps: PlanCounters = bytemuck::pod_read_unaligned(&got[0]);
+        stats.plan = Some(ps.stats(ncells as u64));
         if params.adaptive.tolerance.is_some() {
             let s: Vec<[f32; 8]> = cast(&got[1]);
             let summaries: Vec<BundleSummary> = s
@@ -648,6 +559,14 @@ impl Gpu {
         stats.gpu_memory_bytes = self.memory_bytes();
         push_stage(&mut stats, "total", ms(t0));
         Ok((Rendered { image, stats }, dumped))
+    }
+
+    /// grid.wgsl's counters, read back.
+    fn counters(&self, b: &wgpu::Buffer) -> Result<GridCounters, GpuError> {
+        let size = std::mem::size_of::<GridCounters>();
+        self.fetch_with(&[(b, size as u64)], |got| {
+            bytemuck::pod_read_unaligned(got[0])
+        })
     }
 
     fn encoder(&self) -> wgpu::CommandEncoder {
@@ -940,76 +859,4 @@ fn check_supported(params: &RenderParams, tf: &TransferFunction) -> Result<(), G
         return Err(GpuError::TransferFunction(points));
     }
     Ok(())
-}
-
-fn frame_uniform(
-    frame: &ViewFrame,
-    params: &RenderParams,
-    tf: &TransferFunction,
-    n: usize,
-    loop_limit: u32,
-) -> FrameUniform {
-    let v4 = |v: glam::DVec3| [v.x as f32, v.y as f32, v.z as f32, 0.0];
-    let d = params.grid.bundle;
-    let a = &params.adaptive;
-    FrameUniform {
-        eye: v4(frame.eye),
-        right: v4(frame.right),
-        up: v4(frame.up),
-        forward: v4(frame.forward),
-        width: frame.width,
-        height: frame.height,
-        bundles_x: frame.width.div_ceil(d),
-        bundles_y: frame.height.div_ceil(d),
-        bundle: d,
-        dz: params.grid.depth_samples,
-        cells_z: 0,
-        n_depths: 0,
-        aspect: frame.aspect as f32,
-        tan_half: frame.tan_half as f32,
-        parallel_scale: frame.parallel.unwrap_or(0.0) as f32,
-        min_transmittance: params.min_transmittance as f32,
-        field: match params.field {
-            FieldKind::Csph => 0,
-            FieldKind::Sph => 1,
-            FieldKind::Density => 2,
-        },
-        kernel: match params.kernel {
-            Kernel::CubicSpline => 0,
-            Kernel::Quintic => 1,
-            Kernel::WendlandC2 => 2,
-            Kernel::WendlandC4 => 3,
-            Kernel::Poly6 => 4,
-            Kernel::Gaussian => 5,
-        },
-        gauss_norm: gaussian_norm() as f32,
-        n_colors: tf.colors.len() as u32,
-        n_opacity: tf.opacity.len() as u32,
-        tf_lo: tf.range.0 as f32,
-        tf_hi: tf.range.1 as f32,
-        unit_distance: tf.unit_distance as f32,
-        has_limit: params.depth_limit.is_some() as u32,
-        n_particles: n as u32,
-        near: 0.0,
-        far: 0.0,
-        tolerance: a.tolerance.map_or(-1.0, |e| e as f32),
-        relax: a.relax as f32,
-        budget: a
-            .tolerance
-            .map_or(0.0, |e| (e - params.min_transmittance.max(0.0)) as f32),
-        superpixels: a.superpixels as u32,
-        surface_rule: a.uses_surface_cells() as u32,
-        max_level: params.grid.max_level(),
-        n_pairs: 0,
-        n_cells: 0,
-        loop_limit,
-        pad: [0; 3],
-    }
-}
-
-/// The Gaussian kernel's normalisation constant c (`fluidcast_sph::Kernel::eval`): W(0, H) =
-/// 1 / (c σ³) with σ = H/3.
-fn gaussian_norm() -> f64 {
-    let h = 3.0; // σ = 1
-    1.0 / Kernel::Gaussian.eval(0.0, h)
 }

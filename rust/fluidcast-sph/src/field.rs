@@ -15,6 +15,20 @@ pub enum FieldKind {
     Density,
 }
 
+impl FieldKind {
+    /// Every field, in the order of their codes on the GPU (`FIELD_*` in WGSL).
+    pub const ALL: [FieldKind; 3] = [FieldKind::Csph, FieldKind::Sph, FieldKind::Density];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FieldKind::Csph => "csph",
+            FieldKind::Sph => "sph",
+            FieldKind::Density => "density",
+        }
+    }
+}
+
 impl std::str::FromStr for FieldKind {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

@@ -19,8 +19,8 @@ struct Frame {
     tan_half: f32,
     parallel_scale: f32, // > 0: parallel projection with this scale
     min_transmittance: f32,
-    field: u32,          // 0 csph, 1 sph, 2 density
-    kernel: u32,         // 0 cubic, 1 quintic, 2 wendland-c2, 3 wendland-c4, 4 poly6, 5 gaussian
+    field: u32,          // FIELD_* (written by the Rust side from fluidcast_sph::FieldKind)
+    kernel: u32,         // KERNEL_* (from fluidcast_sph::Kernel)
     gauss_norm: f32,     // the Gaussian kernel's normalisation constant c (see kernel.rs)
     n_colors: u32,
     n_opacity: u32,
@@ -111,7 +111,7 @@ fn kernel_w(r: f32, h: f32) -> f32 {
     }
     let h3 = h * h * h;
     switch P.kernel {
-        case 0u: {
+        case KERNEL_CUBIC: {
             let k = 8.0 / (PI * h3);
             if (q <= 0.5) {
                 return k * (6.0 * q * q * q - 6.0 * q * q + 1.0);
@@ -119,7 +119,7 @@ fn kernel_w(r: f32, h: f32) -> f32 {
             let t = 1.0 - q;
             return k * 2.0 * t * t * t;
         }
-        case 1u: {
+        case KERNEL_QUINTIC: {
             let s = 3.0 * q;
             let hh = h / 3.0;
             let a = max(3.0 - s, 0.0);
@@ -128,20 +128,20 @@ fn kernel_w(r: f32, h: f32) -> f32 {
             let p = a * a * a * a * a - 6.0 * b * b * b * b * b + 15.0 * c * c * c * c * c;
             return p / (120.0 * PI * hh * hh * hh);
         }
-        case 2u: {
+        case KERNEL_WENDLAND_C2: {
             let t = 1.0 - q;
             return 21.0 / (2.0 * PI * h3) * t * t * t * t * (1.0 + 4.0 * q);
         }
-        case 3u: {
+        case KERNEL_WENDLAND_C4: {
             let t = 1.0 - q;
             let t2 = t * t;
             return 495.0 / (32.0 * PI * h3) * t2 * t2 * t2 * (1.0 + 6.0 * q + 35.0 / 3.0 * q * q);
         }
-        case 4u: {
+        case KERNEL_POLY6: {
             let d = 1.0 - q * q;
             return 315.0 / (64.0 * PI * h3) * d * d * d;
         }
-        default: {
+        default: { // KERNEL_GAUSSIAN
             let sigma = h / 3.0;
             return exp(-(r * r) / (2.0 * sigma * sigma)) / (P.gauss_norm * sigma * sigma * sigma);
         }

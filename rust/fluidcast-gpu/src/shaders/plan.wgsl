@@ -257,7 +257,7 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
         }
         var vb = ValueBound(true, true, vec3<f32>(0.0), vec3<f32>(0.0), vec2<f32>(0.0));
         if (any) {
-            if (P.field == 0u) {
+            if (P.field == FIELD_CSPH) {
                 vb = tf_range(q.x, q.y);
             } else {
                 vb = tf_range(q.z, q.w);
@@ -324,11 +324,11 @@ fn analyse_share(cell: Cell, rays: Rays, full: u32, np: u32, part_r2: f32, z: f3
         out.any = true;
         out.q.x = min(out.q.x, pb.y);
         out.q.y = max(out.q.y, pb.y);
-        if (P.field == 1u) {
+        if (P.field == FIELD_SPH) {
             let s = pb.y * pb.x * wmax;
             out.q.z = out.q.z + min(s, 0.0);
             out.q.w = out.q.w + max(s, 0.0);
-        } else if (P.field == 2u) {
+        } else if (P.field == FIELD_DENSITY) {
             out.q.w = out.q.w + pb.z * wmax;
         }
         if (out.cover != full) {

@@ -251,8 +251,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                     continue;
                 }
                 var q = weighted[m] / shepard[m];
-                if (P.field == 1u) { q = weighted[m]; }
-                if (P.field == 2u) { q = density[m]; }
+                if (P.field == FIELD_SPH) { q = weighted[m]; }
+                if (P.field == FIELD_DENSITY) { q = density[m]; }
                 let za = span_z[m];
                 let zb = min(span_z[m + 1u], limit);
                 if (za >= limit) {
