@@ -20,20 +20,32 @@
 //! stage can be tested against its mirror.
 //!
 //! Runs headless on any wgpu adapter, Mesa's lavapipe (CPU Vulkan) included; [`Gpu::new`]
-//! says why when there is none.
+//! says why when there is none, and [`Gpu::open`] takes an [`AdapterChoice`].
+//!
+//! Modules mirror the CPU crates stage by stage: `grid` (fluidcast-grid), `sort` (its counting
+//! sort), `plan` (fluidcast-plan), `raycast` (fluidcast-render's caster), with `frame`
+//! running them in order, `layout` holding the structs the host shares with the WGSL (size and
+//! offsets checked against naga's layout) and `pass` the pipelines, whose bindings are looked
+//! up by the WGSL global's name.
 
 mod adapter;
+mod frame;
+mod grid;
 mod layout;
-mod stages;
+mod pass;
+mod plan;
+mod raycast;
+mod sort;
 
 use std::collections::HashMap;
 use std::sync::Mutex;
 
 use bytemuck::Pod;
 use fluidcast_render::{RenderError, RenderStats};
+use pass::{Pipe, Shader};
 
 pub use adapter::{list_adapters, AdapterChoice, ADAPTER_ENV};
-pub use stages::GpuDump;
+pub use frame::GpuDump;
 
 /// Why the GPU path could not run.
 #[derive(Debug, thiserror::Error)]
@@ -67,21 +79,53 @@ pub enum GpuError {
     Render(#[from] RenderError),
 }
 
-/// The compute pipelines, one per shader entry point.
+/// The compute pipelines, one per shader entry point, each stage's next to its shader.
 struct Pipelines {
-    view: wgpu::ComputePipeline,
-    footprint: wgpu::ComputePipeline,
-    emit: wgpu::ComputePipeline,
-    cell_starts: wgpu::ComputePipeline,
-    make_cells: wgpu::ComputePipeline,
-    bundle_ranges: wgpu::ComputePipeline,
-    scan_blocks: wgpu::ComputePipeline,
-    add_sums: wgpu::ComputePipeline,
-    histogram: wgpu::ComputePipeline,
-    scatter: wgpu::ComputePipeline,
-    analyse: wgpu::ComputePipeline,
-    greedy: wgpu::ComputePipeline,
-    raycast: wgpu::ComputePipeline,
+    view: Pipe,
+    footprint: Pipe,
+    emit: Pipe,
+    cell_starts: Pipe,
+    make_cells: Pipe,
+    bundle_ranges: Pipe,
+    scan_blocks: Pipe,
+    add_sums: Pipe,
+    histogram: Pipe,
+    scatter: Pipe,
+    analyse: Pipe,
+    greedy: Pipe,
+    raycast: Pipe,
+}
+
+impl Pipelines {
+    /// Compiles the shaders: the Rust-owned constants and common.wgsl, then each stage's.
+    fn new(device: &wgpu::Device) -> Result<Pipelines, GpuError> {
+        let common = format!(
+            "{}{}",
+            layout::wgsl_prelude(),
+            include_str!("shaders/common.wgsl")
+        );
+        let staged = |name: &str, src: &str| Shader::new(device, name, &format!("{common}\n{src}"));
+        let grid = staged("grid", include_str!("shaders/grid.wgsl"))?;
+        let plan = staged("plan", include_str!("shaders/plan.wgsl"))?;
+        let raycast = staged("raycast", include_str!("shaders/raycast.wgsl"))?;
+        let scan = Shader::new(device, "scan", include_str!("shaders/scan.wgsl"))?;
+        let sort = Shader::new(device, "sort", include_str!("shaders/sort.wgsl"))?;
+        Ok(Pipelines {
+            view: grid.pipe(device, "view"),
+            footprint: grid.pipe(device, "footprint"),
+            emit: grid.pipe(device, "emit"),
+            cell_starts: grid.pipe(device, "cell_starts"),
+            make_cells: grid.pipe(device, "make_cells"),
+            bundle_ranges: grid.pipe(device, "bundle_ranges"),
+            scan_blocks: scan.pipe(device, "scan_blocks"),
+            add_sums: scan.pipe(device, "add_sums"),
+            histogram: sort.pipe(device, "histogram"),
+            scatter: sort.pipe(device, "scatter"),
+            analyse: plan.pipe(device, "analyse"),
+            greedy: plan.pipe(device, "greedy"),
+            raycast: raycast.pipe(device, "main"),
+        })
+    }
 }
 
 /// A wgpu device with the renderer's pipelines compiled, and the buffers it keeps between
@@ -147,57 +191,7 @@ impl Gpu {
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        // Constants the Rust side owns, then the shared WGSL.
-        let common = format!(
-            "{}{}",
-            layout::wgsl_prelude(),
-            include_str!("shaders/common.wgsl")
-        );
-        let module = |name: &str, src: String| {
-            device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(name),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            })
-        };
-        let grid = module(
-            "grid",
-            format!("{common}\n{}", include_str!("shaders/grid.wgsl")),
-        );
-        let plan = module(
-            "plan",
-            format!("{common}\n{}", include_str!("shaders/plan.wgsl")),
-        );
-        let raycast = module(
-            "raycast",
-            format!("{common}\n{}", include_str!("shaders/raycast.wgsl")),
-        );
-        let scan = module("scan", include_str!("shaders/scan.wgsl").to_string());
-        let sort = module("sort", include_str!("shaders/sort.wgsl").to_string());
-        let pipe = |m: &wgpu::ShaderModule, entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: m,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let pipes = Pipelines {
-            view: pipe(&grid, "view"),
-            footprint: pipe(&grid, "footprint"),
-            emit: pipe(&grid, "emit"),
-            cell_starts: pipe(&grid, "cell_starts"),
-            make_cells: pipe(&grid, "make_cells"),
-            bundle_ranges: pipe(&grid, "bundle_ranges"),
-            scan_blocks: pipe(&scan, "scan_blocks"),
-            add_sums: pipe(&scan, "add_sums"),
-            histogram: pipe(&sort, "histogram"),
-            scatter: pipe(&sort, "scatter"),
-            analyse: pipe(&plan, "analyse"),
-            greedy: pipe(&plan, "greedy"),
-            raycast: pipe(&raycast, "main"),
-        };
+        let pipes = Pipelines::new(&device)?;
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(GpuError::Device(format!("compiling the shaders: {e}")));
         }

@@ -1,0 +1,305 @@
+//! The sparse perspective grid on the GPU (grid.wgsl, Sec. 6.1 of Hochstetter et al. 2016),
+//! mirroring `fluidcast_grid::PerspectiveGrid::build`: particles to view space and their depth
+//! range (`view`), footprints and pair counts (`footprint`, then a scan), the (cell, particle)
+//! pairs with their merge bits (`emit`), the radix sort, and the cells (`cell_starts`,
+//! `make_cells`); `bundle_ranges` runs at the head of the plan's pass.
+
+use std::time::Instant;
+
+use fluidcast_grid::{depth_range, SampleDepths};
+use fluidcast_render::{ms, RenderError, RenderParams};
+use fluidcast_sph::Particles;
+use fluidcast_view::ViewFrame;
+
+use crate::frame::FrameCtx;
+use crate::layout::GridCounters;
+use crate::plan::Plan;
+use crate::raycast::Casting;
+use crate::{push_stage, Gpu, GpuError, RW};
+
+/// Bytes per cell of the error analysis' bounds: (lo, hi) vec4 for 7 levels.
+pub(crate) const BOUND_BYTES: u64 = 7 * 32;
+
+/// The grid of one frame, as the plan and the ray caster read it.
+pub(crate) struct Grid {
+    /// Particles in view space: (c.xyz, H), (V, q, m, 0).
+    pub(crate) vparts: wgpu::Buffer,
+    /// The sample depths (f32).
+    pub(crate) depths: wgpu::Buffer,
+    /// Non-empty cells, by bundle and depth (`Cell` in common.wgsl).
+    pub(crate) cells: wgpu::Buffer,
+    pub(crate) cells_n: u32,
+    /// Particle indices grouped by cell.
+    pub(crate) refs: wgpu::Buffer,
+    pub(crate) pairs: u64,
+    /// Bundle b's cells are `bundle_cells[b]..bundle_cells[b + 1]` (filled by `bundle_ranges`).
+    pub(crate) bundle_cells: wgpu::Buffer,
+}
+
+impl Grid {
+    /// What the ray caster reads of this grid and `plan`, with the frame's uniform and
+    /// loop guard.
+    pub(crate) fn casting<'a>(
+        &'a self,
+        plan: &'a Plan,
+        frame: &'a wgpu::Buffer,
+        guard: &'a wgpu::Buffer,
+    ) -> Casting<'a> {
+        Casting {
+            frame,
+            tf: &plan.tf,
+            vparts: &self.vparts,
+            depths: &self.depths,
+            cells: &self.cells,
+            refs: &self.refs,
+            bundle_cells: &self.bundle_cells,
+            spans: &plan.spans,
+            span_count: &plan.span_count,
+            guard,
+        }
+    }
+}
+
+/// Each particle's footprint (bundle rectangle, cell range) and the prefix sum of their pair
+/// counts: where `emit` writes each particle's pairs.
+struct Footprints {
+    foot: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    pairs: u64,
+}
+
+/// The particles in world space as grid.wgsl's `world`: (x, y, z, H), (V, q, m, 0).
+fn world(particles: &Particles) -> Vec<[f32; 4]> {
+    (0..particles.len())
+        .flat_map(|j| {
+            let p = particles.positions[j];
+            let (v, q, m) = (
+                particles.volumes[j],
+                particles.values[j],
+                particles.masses[j],
+            );
+            [[p[0], p[1], p[2], particles.radii[j]], [v, q, m, 0.0]]
+        })
+        .collect()
+}
+
+impl Gpu {
+    /// Builds the grid; `None` when nothing is in view (the image stays empty).
+    pub(crate) fn grid(
+        &self,
+        ctx: &mut FrameCtx,
+        particles: &Particles,
+        frame: &ViewFrame,
+        params: &RenderParams,
+    ) -> Result<Option<Grid>, GpuError> {
+        let t = Instant::now();
+        let n = particles.len() as u32;
+        if n == 0 {
+            return Ok(None);
+        }
+        let counters = self.upload("counters", &[GridCounters::START]);
+        let vparts = self.view(ctx, particles, &counters)?;
+        let Some(zs) = self.sample_depths(ctx, &counters, frame, params)? else {
+            push_stage(&mut ctx.stats, "grid", ms(t));
+            return Ok(None);
+        };
+        let depths = self.upload("depths", &zs);
+        let fp = self.footprints(ctx, &vparts, &counters, &depths, n)?;
+        if fp.pairs == 0 {
+            push_stage(&mut ctx.stats, "grid", ms(t));
+            return Ok(None);
+        }
+        let pairs = fp.pairs;
+        let (cells, cells_n, refs) = self.cells(ctx, &counters, &fp, n)?;
+        push_stage(&mut ctx.stats, "grid", ms(t));
+        let bundle_cells = self.buffer("bundle cells", 4 * (ctx.bundles as u64 + 1), RW, None);
+        Ok(Some(Grid {
+            vparts,
+            depths,
+            cells,
+            cells_n,
+            refs,
+            pairs,
+            bundle_cells,
+        }))
+    }
+
+    /// Stage 1: particles to view space and their depth range (into `counters`).
+    fn view(
+        &self,
+        ctx: &mut FrameCtx,
+        particles: &Particles,
+        counters: &wgpu::Buffer,
+    ) -> Result<wgpu::Buffer, GpuError> {
+        let n = particles.len() as u32;
+        let world = self.upload("world particles", &world(particles));
+        let vparts = self.buffer("view particles", 32 * n as u64, RW, None);
+        let binds = [
+            ("P", &ctx.frame_buf),
+            ("world", &world),
+            ("vparts", &vparts),
+            ("counters", counters),
+        ];
+        self.submit_pass(&mut ctx.timer, "gpu_grid", |pass| {
+            self.dispatch(pass, &self.pipes.view, &binds, n.div_ceil(256))
+        })?;
+        Ok(vparts)
+    }
+
+    /// The sample depths for the particles' depth range, placed exactly as the CPU places
+    /// them ([`SampleDepths`]), in f32; `None` when nothing lies in front of the camera.
+    fn sample_depths(
+        &self,
+        ctx: &mut FrameCtx,
+        counters: &wgpu::Buffer,
+        frame: &ViewFrame,
+        params: &RenderParams,
+    ) -> Result<Option<Vec<f32>>, GpuError> {
+        let (zmin, zmax) = self.counters(counters)?.depth_range();
+        let Some((near, far)) = depth_range(zmin, zmax, frame.parallel.is_none()) else {
+            return Ok(None);
+        };
+        let dz = params.grid.depth_samples;
+        let depths = SampleDepths::new(frame, near, far, params.sampling_scale, dz as usize)
+            .map_err(RenderError::from)?;
+        let cells_z = (depths.len() / dz as usize) as u64;
+        let nb = ctx.bundles as u64;
+        if nb * cells_z * 2 > u32::MAX as u64 {
+            return Err(GpuError::GridTooLarge(nb, cells_z));
+        }
+        self.check_loop_bounds(nb, cells_z)?;
+        ctx.stats.depth_samples = depths.len();
+        ctx.stats.near = near;
+        ctx.stats.far = far;
+        ctx.u.near = near as f32;
+        ctx.u.far = far as f32;
+        ctx.u.n_depths = depths.len() as u32;
+        ctx.u.cells_z = cells_z as u32;
+        ctx.update(self);
+        Ok(Some(depths.z.iter().map(|&z| z as f32).collect()))
+    }
+
+    /// Stage 2: each particle's bundle rectangle and cell range, its pair count and their prefix
+    /// sum.
+    fn footprints(
+        &self,
+        ctx: &mut FrameCtx,
+        vparts: &wgpu::Buffer,
+        counters: &wgpu::Buffer,
+        depths: &wgpu::Buffer,
+        n: u32,
+    ) -> Result<Footprints, GpuError> {
+        let foot = self.buffer("footprints", 32 * n as u64, RW, None);
+        let counts = self.buffer("pair counts", 4 * n as u64, RW, None);
+        let binds = [
+            ("P", &ctx.frame_buf),
+            ("vparts", vparts),
+            ("counters", counters),
+            ("depths", depths),
+            ("foot", &foot),
+            ("counts", &counts),
+        ];
+        self.submit_pass(&mut ctx.timer, "gpu_grid", |pass| {
+            self.dispatch(pass, &self.pipes.footprint, &binds, n.div_ceil(256))?;
+            self.scan(pass, &counts, n, 0)
+        })?;
+        let c = self.counters(counters)?;
+        ctx.stats.particles_visible = c.visible as usize;
+        let pairs = c.pairs();
+        ctx.stats.pairs = pairs;
+        let limit = (self.max_binding / 4).min(u32::MAX as u64 / 2);
+        if pairs > limit {
+            return Err(GpuError::TooManyPairs(pairs, limit));
+        }
+        ctx.u.n_pairs = pairs as u32;
+        ctx.update(self);
+        Ok(Footprints {
+            foot,
+            counts,
+            pairs,
+        })
+    }
+
+    /// Stage 3: the pairs, sorted by (bundle, depth, merge bit), and the cells; returns the cells,
+    /// their number and the particle references.
+    fn cells(
+        &self,
+        ctx: &mut FrameCtx,
+        counters: &wgpu::Buffer,
+        fp: &Footprints,
+        n: u32,
+    ) -> Result<(wgpu::Buffer, u32, wgpu::Buffer), GpuError> {
+        let pairs = fp.pairs;
+        let np = pairs as u32;
+        let keys = self.buffer("keys", 4 * pairs, RW, None);
+        let vals = self.buffer("values", 4 * pairs, RW, None);
+        let starts = self.buffer("cell starts", 4 * pairs, RW, None);
+        let cells = self.buffer("cells", (32 * pairs).min(self.max_binding), RW, None);
+        let frame = &ctx.frame_buf;
+        let mut enc = self.encoder();
+        let mut pass = ctx.timer.pass(&mut enc, "gpu_grid");
+        let binds = [
+            ("P", frame),
+            ("foot", &fp.foot),
+            ("counts", &fp.counts),
+            ("keys", &keys),
+            ("vals", &vals),
+            ("guard", &ctx.guard),
+        ];
+        self.dispatch(&mut pass, &self.pipes.emit, &binds, n.div_ceil(256))?;
+        drop(pass);
+        let mut pass = ctx.timer.pass(&mut enc, "gpu_sort");
+        let bits = 64 - (ctx.bundles as u64 * ctx.u.cells_z as u64 * 2 - 1).leading_zeros();
+        let (sorted_keys, refs) = self.sort(&mut pass, &keys, &vals, np, bits)?;
+        drop(pass);
+        let mut pass = ctx.timer.pass(&mut enc, "gpu_grid");
+        let binds = [
+            ("P", frame),
+            ("counters", counters),
+            ("starts", &starts),
+            ("sorted_keys", &sorted_keys),
+        ];
+        self.dispatch(&mut pass, &self.pipes.cell_starts, &binds, np.div_ceil(256))?;
+        self.scan(&mut pass, &starts, np, 0)?;
+        let binds = [
+            ("P", frame),
+            ("starts", &starts),
+            ("cells", &cells),
+            ("sorted_keys", &sorted_keys),
+        ];
+        self.dispatch(&mut pass, &self.pipes.make_cells, &binds, np.div_ceil(256))?;
+        drop(pass);
+        self.queue.submit([enc.finish()]);
+        let cells_n = self.counters(counters)?.cells;
+        ctx.stats.cells = cells_n as u64;
+        if cells_n as u64 * BOUND_BYTES > self.max_binding {
+            let most = self.max_binding / BOUND_BYTES;
+            return Err(GpuError::TooManyCells(cells_n as u64, most));
+        }
+        ctx.u.n_cells = cells_n;
+        ctx.update(self);
+        Ok((cells, cells_n, refs))
+    }
+
+    /// Each bundle's cell range (`bundle_ranges`), recorded into the plan's first pass.
+    pub(crate) fn bundle_ranges(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        ctx: &FrameCtx,
+        grid: &Grid,
+    ) -> Result<(), GpuError> {
+        let binds = [
+            ("P", &ctx.frame_buf),
+            ("cells", &grid.cells),
+            ("bundle_cells", &grid.bundle_cells),
+        ];
+        let groups = grid.cells_n.div_ceil(256);
+        self.dispatch(pass, &self.pipes.bundle_ranges, &binds, groups)
+    }
+
+    /// grid.wgsl's counters, read back.
+    fn counters(&self, b: &wgpu::Buffer) -> Result<GridCounters, GpuError> {
+        let size = std::mem::size_of::<GridCounters>() as u64;
+        self.fetch_with(&[(b, size)], |got| bytemuck::pod_read_unaligned(got[0]))
+    }
+}

@@ -1,0 +1,217 @@
+//! Compute passes: pipelines whose bindings are looked up by the WGSL global's name (read from
+//! the shader by naga when the pipeline is made, so no binding number is written twice),
+//! dispatches, and GPU timestamps per stage.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use fluidcast_render::RenderStats;
+use wgpu::util::DeviceExt;
+
+use crate::{cast, push_stage, Gpu, GpuError, QUERIES};
+
+/// A compute pipeline and the binding numbers of its shader's globals, by name.
+pub(crate) struct Pipe {
+    pipeline: wgpu::ComputePipeline,
+    entry: &'static str,
+    slots: Arc<HashMap<String, u32>>,
+}
+
+/// A shader module and its globals' bindings (group 0), by name.
+pub(crate) struct Shader {
+    module: wgpu::ShaderModule,
+    slots: Arc<HashMap<String, u32>>,
+}
+
+impl Shader {
+    /// Compiles `src` and reads its bindings with naga.
+    pub(crate) fn new(device: &wgpu::Device, name: &str, src: &str) -> Result<Shader, GpuError> {
+        let parsed = naga::front::wgsl::parse_str(src)
+            .map_err(|e| GpuError::Device(format!("{name}.wgsl: {}", e.emit_to_string(src))))?;
+        let slots = parsed
+            .global_variables
+            .iter()
+            .filter_map(|(_, g)| Some((g.name.clone()?, g.binding.as_ref()?.binding)))
+            .collect();
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(name),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        Ok(Shader {
+            module,
+            slots: Arc::new(slots),
+        })
+    }
+
+    pub(crate) fn pipe(&self, device: &wgpu::Device, entry: &'static str) -> Pipe {
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: None,
+            module: &self.module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Pipe {
+            pipeline,
+            entry,
+            slots: self.slots.clone(),
+        }
+    }
+}
+
+/// Timestamp queries around compute passes, summed by stage name.
+pub(crate) struct Timer<'q> {
+    pub(crate) queries: Option<&'q wgpu::QuerySet>,
+    pub(crate) names: Vec<&'static str>,
+}
+
+impl<'q> Timer<'q> {
+    pub(crate) fn new(queries: Option<&'q wgpu::QuerySet>) -> Timer<'q> {
+        Timer {
+            queries,
+            names: Vec::new(),
+        }
+    }
+
+    /// A compute pass timed as `name` (while the query set has room).
+    pub(crate) fn pass<'e>(
+        &mut self,
+        enc: &'e mut wgpu::CommandEncoder,
+        name: &'static str,
+    ) -> wgpu::ComputePass<'e> {
+        let writes = match self.queries {
+            Some(q) if 2 * (self.names.len() as u32 + 1) <= QUERIES => {
+                let i = 2 * self.names.len() as u32;
+                self.names.push(name);
+                Some(wgpu::ComputePassTimestampWrites {
+                    query_set: q,
+                    beginning_of_pass_write_index: Some(i),
+                    end_of_pass_write_index: Some(i + 1),
+                })
+            }
+            _ => None,
+        };
+        enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(name),
+            timestamp_writes: writes,
+        })
+    }
+}
+
+impl Gpu {
+    pub(crate) fn encoder(&self) -> wgpu::CommandEncoder {
+        self.device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None })
+    }
+
+    /// Records one timed compute pass with `f` and submits it.
+    pub(crate) fn submit_pass(
+        &self,
+        timer: &mut Timer,
+        name: &'static str,
+        f: impl FnOnce(&mut wgpu::ComputePass) -> Result<(), GpuError>,
+    ) -> Result<(), GpuError> {
+        let mut enc = self.encoder();
+        {
+            let mut pass = timer.pass(&mut enc, name);
+            f(&mut pass)?;
+        }
+        self.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// Runs `pipe` over `groups` workgroups (folded into two dimensions past 32768), with
+    /// the buffers bound to the WGSL globals they are named after (exactly those the entry
+    /// point uses).
+    pub(crate) fn dispatch(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        pipe: &Pipe,
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: u32,
+    ) -> Result<(), GpuError> {
+        if groups == 0 {
+            return Ok(());
+        }
+        let x = groups.min(32768);
+        self.dispatch_2d(pass, pipe, binds, (x, groups.div_ceil(x)))
+    }
+
+    pub(crate) fn dispatch_2d(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        pipe: &Pipe,
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: (u32, u32),
+    ) -> Result<(), GpuError> {
+        let mut entries = Vec::with_capacity(binds.len());
+        for (name, b) in binds {
+            let Some(&binding) = pipe.slots.get(*name) else {
+                return Err(GpuError::Device(format!(
+                    "the shader of '{}' has no binding '{name}'",
+                    pipe.entry
+                )));
+            };
+            entries.push(wgpu::BindGroupEntry {
+                binding,
+                resource: b.as_entire_binding(),
+            });
+        }
+        let bind = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(pipe.entry),
+            layout: &pipe.pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        pass.set_pipeline(&pipe.pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups.0, groups.1, 1);
+        Ok(())
+    }
+
+    /// A small uniform buffer made for one dispatch (each dispatch of a pass sees its own).
+    pub(crate) fn small_uniform(&self, v: [u32; 4]) -> wgpu::Buffer {
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: None,
+                contents: bytemuck::cast_slice(&v),
+                usage: wgpu::BufferUsages::UNIFORM,
+            })
+    }
+
+    /// Waits for everything submitted so far.
+    pub(crate) fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Device(e.to_string()))
+    }
+
+    /// Reads the timestamp queries of the frame into `gpu_*` stages (milliseconds).
+    pub(crate) fn finish_timers(
+        &self,
+        timer: &Timer,
+        stats: &mut RenderStats,
+    ) -> Result<(), GpuError> {
+        let (Some(q), false) = (timer.queries, timer.names.is_empty()) else {
+            return Ok(());
+        };
+        let count = 2 * timer.names.len() as u32;
+        let resolve = self.buffer(
+            "timestamps",
+            8 * QUERIES as u64,
+            wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            None,
+        );
+        let mut enc = self.encoder();
+        enc.resolve_query_set(q, 0..count, &resolve, 0);
+        self.queue.submit([enc.finish()]);
+        let t: Vec<u64> = cast(&self.fetch(&[(&resolve, 8 * count as u64)])?[0]);
+        let period = self.queue.get_timestamp_period() as f64;
+        for (k, name) in timer.names.iter().enumerate() {
+            let ns = t[2 * k + 1].saturating_sub(t[2 * k]) as f64 * period;
+            push_stage(stats, name, ns * 1e-6);
+        }
+        Ok(())
+    }
+}

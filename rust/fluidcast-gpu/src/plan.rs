@@ -1,0 +1,164 @@
+//! The sampling plan on the GPU (plan.wgsl, Sec. 4–6.2), mirroring
+//! `fluidcast_plan::SamplingPlan::build`: the error analysis per cell (`analyse`, skipped at
+//! full rate) and the greedy choice of levels and super-pixels with cell merging per bundle
+//! (`greedy`), which writes the spans the ray caster reads.
+
+use bytemuck::Zeroable;
+use fluidcast_image::Image;
+use fluidcast_plan::BundleSummary;
+use fluidcast_render::{bundle_aovs, plan_surface, RenderParams};
+use fluidcast_sph::Particles;
+use fluidcast_view::TransferFunction;
+
+use crate::frame::FrameCtx;
+use crate::grid::{Grid, BOUND_BYTES};
+use crate::layout::PlanCounters;
+use crate::{cast, Gpu, GpuError, RW};
+
+/// The plan of one frame.
+pub(crate) struct Plan {
+    pub(crate) tf: wgpu::Buffer,
+    /// Chosen level per cell (255: super-pixel).
+    pub(crate) levels: wgpu::Buffer,
+    /// Bundle b's spans start at its first cell (`Span` in common.wgsl).
+    pub(crate) spans: wgpu::Buffer,
+    pub(crate) span_count: wgpu::Buffer,
+    /// Per bundle: predicted error, mean level, shares at full rate, adapted, super-pixel.
+    pub(crate) summaries: wgpu::Buffer,
+    /// `PlanCounters`.
+    pub(crate) counters: wgpu::Buffer,
+}
+
+/// The error analysis' per-cell results.
+struct Analysis {
+    bounds: wgpu::Buffer,
+    info: wgpu::Buffer,
+}
+
+impl Gpu {
+    /// Stage 4: bundle cell ranges, the error analysis, greedy levels and merging.
+    pub(crate) fn plan(
+        &self,
+        ctx: &mut FrameCtx,
+        grid: &Grid,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        tf: &TransferFunction,
+        params: &RenderParams,
+    ) -> Result<Plan, GpuError> {
+        let (nc, nb) = (grid.cells_n as u64, ctx.bundles as u64);
+        let flags: Vec<u32> = match plan_surface(particles, surface, &params.adaptive) {
+            Some(s) if params.adaptive.uses_surface_cells() => {
+                s.iter().map(|&f| f as u32).collect()
+            }
+            _ => vec![0],
+        };
+        let surface = self.upload("surface flags", &flags);
+        let a = Analysis {
+            bounds: self.buffer("cell bounds", BOUND_BYTES * nc, RW, None),
+            info: self.buffer("cell info", 4 * nc, RW, None),
+        };
+        let plan = Plan {
+            tf: self.tf_buffer(tf),
+            levels: self.buffer("levels", 4 * nc, RW, None),
+            spans: self.buffer("spans", 48 * nc, RW, None),
+            span_count: self.buffer("span counts", 4 * nb, RW, None),
+            summaries: self.buffer("bundle summaries", 32 * nb, RW, None),
+            counters: self.upload("plan stats", &[PlanCounters::zeroed()]),
+        };
+        let mut enc = self.encoder();
+        let mut pass = ctx.timer.pass(&mut enc, "gpu_grid");
+        self.bundle_ranges(&mut pass, ctx, grid)?;
+        drop(pass);
+        let mut pass = ctx.timer.pass(&mut enc, "gpu_adapt");
+        if params.adaptive.tolerance.is_some() {
+            self.analyse(&mut pass, ctx, grid, &plan, &surface, &a)?;
+        }
+        self.greedy(&mut pass, ctx, grid, &plan, &a)?;
+        drop(pass);
+        self.queue.submit([enc.finish()]);
+        self.wait()?;
+        Ok(plan)
+    }
+
+    fn analyse(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        ctx: &FrameCtx,
+        grid: &Grid,
+        plan: &Plan,
+        surface: &wgpu::Buffer,
+        a: &Analysis,
+    ) -> Result<(), GpuError> {
+        let binds = [
+            ("P", &ctx.frame_buf),
+            ("tf", &plan.tf),
+            ("vparts", &grid.vparts),
+            ("depths", &grid.depths),
+            ("cells", &grid.cells),
+            ("refs", &grid.refs),
+            ("surface", surface),
+            ("bounds", &a.bounds),
+            ("info", &a.info),
+            ("guard", &ctx.guard),
+        ];
+        self.dispatch(pass, &self.pipes.analyse, &binds, grid.cells_n)
+    }
+
+    fn greedy(
+        &self,
+        pass: &mut wgpu::ComputePass,
+        ctx: &FrameCtx,
+        grid: &Grid,
+        plan: &Plan,
+        a: &Analysis,
+    ) -> Result<(), GpuError> {
+        let front = self.buffer("front bounds", 32 * grid.cells_n as u64, RW, None);
+        let binds = [
+            ("P", &ctx.frame_buf),
+            ("cells", &grid.cells),
+            ("bounds", &a.bounds),
+            ("info", &a.info),
+            ("bundle_cells", &grid.bundle_cells),
+            ("front", &front),
+            ("levels", &plan.levels),
+            ("spans", &plan.spans),
+            ("span_count", &plan.span_count),
+            ("summaries", &plan.summaries),
+            ("plan_stats", &plan.counters),
+        ];
+        self.dispatch(pass, &self.pipes.greedy, &binds, ctx.bundles.div_ceil(64))
+    }
+
+    /// The plan's statistics, and its per-bundle summaries as the image's AOVs.
+    pub(crate) fn plan_results(
+        &self,
+        ctx: &mut FrameCtx,
+        plan: &Plan,
+        cells: u32,
+        params: &RenderParams,
+        image: &mut Image,
+    ) -> Result<(), GpuError> {
+        let nb = ctx.bundles as u64;
+        let size = std::mem::size_of::<PlanCounters>() as u64;
+        let got = self.fetch(&[(&plan.counters, size), (&plan.summaries, 32 * nb)])?;
+        let counters: PlanCounters = bytemuck::pod_read_unaligned(&got[0]);
+        ctx.stats.plan = Some(counters.stats(cells as u64));
+        if params.adaptive.tolerance.is_some() {
+            let s: Vec<[f32; 8]> = cast(&got[1]);
+            let summaries: Vec<BundleSummary> = s
+                .iter()
+                .map(|v| BundleSummary {
+                    predicted_error: v[0],
+                    mean_level: v[1],
+                    full: v[2],
+                    adapted: v[3],
+                    superpixel: v[4],
+                })
+                .collect();
+            let (d, w, h) = (params.grid.bundle, params.width, params.height);
+            image.aovs = bundle_aovs(&summaries, d, w, h);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,213 @@
+//! Bundle-coherent ray casting on the GPU (raycast.wgsl, Alg. 2): one workgroup per ray
+//! bundle casts a plan's spans, from the GPU's own grid and plan or from the CPU's
+//! ([`Gpu::render_planned`], which tests this stage alone against the CPU caster).
+
+use std::time::Instant;
+
+use bytemuck::Zeroable;
+use fluidcast_grid::PerspectiveGrid;
+use fluidcast_image::Image;
+use fluidcast_plan::SamplingPlan;
+use fluidcast_render::{ms, AdaptivePlan, RenderParams, RenderStats, Rendered};
+use fluidcast_view::TransferFunction;
+
+use crate::frame::check_supported;
+use crate::layout::{GpuCell, GpuSpan};
+use crate::pass::Timer;
+use crate::{cast, push_stage, Gpu, GpuError, RW};
+
+/// What the ray caster reads (raycast.wgsl's inputs, by their WGSL names).
+pub(crate) struct Casting<'a> {
+    pub(crate) frame: &'a wgpu::Buffer,
+    pub(crate) tf: &'a wgpu::Buffer,
+    pub(crate) vparts: &'a wgpu::Buffer,
+    pub(crate) depths: &'a wgpu::Buffer,
+    pub(crate) cells: &'a wgpu::Buffer,
+    pub(crate) refs: &'a wgpu::Buffer,
+    pub(crate) bundle_cells: &'a wgpu::Buffer,
+    pub(crate) spans: &'a wgpu::Buffer,
+    pub(crate) span_count: &'a wgpu::Buffer,
+    pub(crate) guard: &'a wgpu::Buffer,
+}
+
+/// A CPU grid and plan in the GPU's layout: cells and spans by bundle (a bundle's spans start
+/// at its first cell, as plan.wgsl writes them).
+struct Uploaded {
+    parts: Vec<[f32; 4]>,
+    cells: Vec<GpuCell>,
+    bundle_cells: Vec<u32>,
+    spans: Vec<GpuSpan>,
+    span_count: Vec<u32>,
+}
+
+fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
+    let nb = grid.bundle_count();
+    let dz = grid.params.depth_samples;
+    let mut up = Uploaded {
+        parts: grid
+            .particles
+            .iter()
+            .flat_map(|p| {
+                let c = p.c.map(|v| v as f32);
+                [
+                    [c[0], c[1], c[2], p.h as f32],
+                    [p.v as f32, p.a as f32, p.m as f32, 0.0],
+                ]
+            })
+            .collect(),
+        cells: Vec::with_capacity(grid.cells.len()),
+        bundle_cells: Vec::with_capacity(nb + 1),
+        spans: Vec::with_capacity(grid.cells.len()),
+        span_count: Vec::with_capacity(nb),
+    };
+    for b in 0..nb {
+        up.bundle_cells.push(up.cells.len() as u32);
+        up.cells
+            .extend(grid.bundle_cells(b).iter().map(|c| GpuCell {
+                z: c.z,
+                start: c.start,
+                unique_end: c.unique_end,
+                end: c.end,
+                bundle: b as u32,
+                pad: [0; 3],
+            }));
+        let bs = plan.bundle_spans(b);
+        up.span_count.push(bs.len() as u32);
+        up.spans.extend(bs.iter().map(|s| {
+            let step = 1u32 << s.level;
+            GpuSpan {
+                first: s.first,
+                count: s.count,
+                level: s.level as u32,
+                superpixel: s.superpixel.is_some() as u32,
+                k0: grid.cells[s.first as usize].z * dz,
+                n: s.count * dz / step,
+                step,
+                pad: 0,
+                sp: s.superpixel.unwrap_or([0.0; 4]),
+            }
+        }));
+        up.spans.resize(up.cells.len(), GpuSpan::zeroed());
+    }
+    up.bundle_cells.push(up.cells.len() as u32);
+    up
+}
+
+impl Gpu {
+    /// Casts the rays of a grid and plan built on the CPU ([`fluidcast_render::plan_adaptive`]):
+    /// the ray casting stage alone, to test it against the CPU's caster on the same input.
+    pub fn render_planned(
+        &self,
+        planned: &AdaptivePlan,
+        tf: &TransferFunction,
+        params: &RenderParams,
+    ) -> Result<Rendered, GpuError> {
+        let _frame = self.frame_lock.lock().expect("frame lock");
+        check_supported(params, tf)?;
+        let (grid, plan) = (&planned.grid, &planned.plan);
+        let mut ctx = self.frame_ctx(&grid.frame, params, tf, grid.particles.len());
+        ctx.stats = planned.stats.clone();
+        let mut image = Image::new(params.width, params.height);
+        let Some(depths) = &grid.depths else {
+            return Ok(Rendered {
+                image,
+                stats: ctx.stats,
+            });
+        };
+        ctx.u.n_depths = depths.len() as u32;
+        ctx.u.n_cells = grid.cells.len() as u32;
+        ctx.update(self);
+        let up = gpu_layout(grid, plan);
+        let zs: Vec<f32> = depths.z.iter().map(|&z| z as f32).collect();
+        let (tfb, vparts, depths) = (
+            self.tf_buffer(tf),
+            self.upload("view particles", &up.parts),
+            self.upload("depths", &zs),
+        );
+        let (cells, refs) = (
+            self.upload("cells", &up.cells),
+            self.upload("refs", &grid.refs),
+        );
+        let bundle_cells = self.upload("bundle cells", &up.bundle_cells);
+        let spans = self.upload("spans", &up.spans);
+        let span_count = self.upload("span counts", &up.span_count);
+        let t1 = Instant::now();
+        let casting = Casting {
+            frame: &ctx.frame_buf,
+            tf: &tfb,
+            vparts: &vparts,
+            depths: &depths,
+            cells: &cells,
+            refs: &refs,
+            bundle_cells: &bundle_cells,
+            spans: &spans,
+            span_count: &span_count,
+            guard: &ctx.guard,
+        };
+        let (stats, timer) = (&mut ctx.stats, &mut ctx.timer);
+        self.raycast(&casting, params, timer, stats, &mut image)?;
+        push_stage(&mut ctx.stats, "raycast", ms(t1));
+        image.aovs = fluidcast_render::plan_aovs(grid, plan, params.width, params.height);
+        self.finish(ctx, image)
+    }
+
+    /// Stage 5: casts the rays of `b`; the image and the sample count are read back into `image`
+    /// and `stats`.
+    pub(crate) fn raycast(
+        &self,
+        b: &Casting,
+        params: &RenderParams,
+        timer: &mut Timer,
+        stats: &mut RenderStats,
+        image: &mut Image,
+    ) -> Result<(), GpuError> {
+        let (w, h, d) = (params.width, params.height, params.grid.bundle);
+        let n_px = w as u64 * h as u64;
+        let groups = (w.div_ceil(d), h.div_ceil(d));
+        let bundles = groups.0 as u64 * groups.1 as u64;
+        // f32::INFINITY is fine in WGSL storage (the shader only compares against it).
+        let limits: &[f32] = params.depth_limit.as_deref().unwrap_or(&[]);
+        let limit = self.upload("depth limit", limits);
+        let rgba = self.buffer("rgba", 16 * n_px, RW, None);
+        let depth = self.buffer("depth", 4 * n_px, RW, None);
+        let samples = self.buffer("samples", 4 * bundles, RW, None);
+        let binds = [
+            ("P", b.frame),
+            ("tf", b.tf),
+            ("particles", b.vparts),
+            ("depths", b.depths),
+            ("spans", b.spans),
+            ("span_count", b.span_count),
+            ("bundle_cells", b.bundle_cells),
+            ("cells", b.cells),
+            ("refs", b.refs),
+            ("out_rgba", &rgba),
+            ("out_depth", &depth),
+            ("out_samples", &samples),
+            ("depth_limit", &limit),
+            ("guard", b.guard),
+        ];
+        self.submit_pass(timer, "gpu_raycast", |pass| {
+            self.dispatch_2d(pass, &self.pipes.raycast, &binds, groups)
+        })?;
+        let parts = [
+            (&rgba, 16 * n_px),
+            (&depth, 4 * n_px),
+            (&samples, 4 * bundles),
+            (b.guard, 4),
+        ];
+        let guarded = self.fetch_with(&parts, |got| {
+            image.rgba = cast(got[0]);
+            image.depth = cast::<f32>(got[1]);
+            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
+                *z = f32::INFINITY;
+            }
+            stats.samples = cast::<u32>(got[2]).iter().map(|&s| s as u64).sum();
+            cast::<u32>(got[3])[0] != 0
+        })?;
+        if guarded {
+            return Err(self.loop_limit_error("the grid, the error analysis or the ray casting"));
+        }
+        Ok(())
+    }
+}
