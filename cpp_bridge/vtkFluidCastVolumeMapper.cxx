@@ -93,6 +93,14 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
 }
 
 //------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetKernelName(int index)
+{
+  rust::Vec<rust::String> names = fluidcast::kernel_names();
+  return index >= 0 && static_cast<size_t>(index) < names.size() ? std::string(names[index])
+                                                                 : std::string();
+}
+
+//------------------------------------------------------------------------------
 std::string vtkFluidCastVolumeMapper::GetBackendAsString()
 {
   // The names and their order come from the Rust side (fluidcast_backend::Backend::NAMES).

@@ -84,6 +84,11 @@ public:
    */
   vtkSetStringMacro(Kernel);
   vtkGetStringMacro(Kernel);
+  /**
+   * The name of kernel `index` in fluidcast's list (0 cubic, 1 quintic, 2 wendland-c2,
+   * 3 wendland-c4, 4 poly6, 5 gaussian: ParaView's FluidCastKernel), "" past its end.
+   */
+  static std::string GetKernelName(int index);
   ///@}
 
   ///@{

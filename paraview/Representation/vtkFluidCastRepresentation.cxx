@@ -20,12 +20,6 @@
 
 vtkStandardNewMacro(vtkFluidCastRepresentation);
 
-namespace
-{
-const char* const kKernels[] = { "cubic", "quintic", "wendland-c2", "wendland-c4", "poly6",
-  "gaussian" };
-}
-
 //------------------------------------------------------------------------------
 vtkFluidCastRepresentation::vtkFluidCastRepresentation()
 {
@@ -165,12 +159,13 @@ void vtkFluidCastRepresentation::SetRadiusScale(double s)
 
 void vtkFluidCastRepresentation::SetKernel(int kernel)
 {
-  if (kernel < 0 || kernel >= static_cast<int>(sizeof(kKernels) / sizeof(kKernels[0])))
+  const std::string name = vtkFluidCastVolumeMapper::GetKernelName(kernel);
+  if (name.empty())
   {
     vtkErrorMacro(<< "unknown kernel " << kernel);
     return;
   }
-  this->Mapper->SetKernel(kKernels[kernel]);
+  this->Mapper->SetKernel(name.c_str());
 }
 
 void vtkFluidCastRepresentation::SetErrorTolerance(double e)

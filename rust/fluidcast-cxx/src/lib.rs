@@ -106,6 +106,9 @@ mod ffi {
 
         /// The backend names `Settings::backend` indexes: auto, cpu, gpu.
         fn backend_names() -> Vec<String>;
+        /// The kernel names `Settings::kernel` takes, in the order of ParaView's
+        /// `FluidCastKernel` (cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian).
+        fn kernel_names() -> Vec<String>;
 
         /// The renderer: holds the particle data, settings, camera and transfer function,
         /// and the opened backend (a GPU device lives as long as the renderer).
@@ -225,6 +228,10 @@ struct OpenBackend {
     backend: Backend,
     adapter: String,
     renderer: fluidcast_backend::Renderer,
+}
+
+fn kernel_names() -> Vec<String> {
+    Kernel::ALL.iter().map(|k| k.name().to_string()).collect()
 }
 
 fn backend_names() -> Vec<String> {
@@ -761,6 +768,9 @@ mod tests {
         let e = r.configure(&s).unwrap_err();
         assert!(e.contains("backend 7"), "{e}");
         assert_eq!(backend_names(), ["auto", "cpu", "gpu"]);
+        for (i, k) in kernel_names().iter().enumerate() {
+            assert_eq!(k.parse::<Kernel>().unwrap(), Kernel::ALL[i]);
+        }
     }
 
     #[test]
