@@ -1,12 +1,13 @@
 //! The sparse perspective grid on the GPU (grid.wgsl, Sec. 6.1 of Hochstetter et al. 2016),
-//! mirroring `fluidcast_grid::PerspectiveGrid::build`: particles to view space and their depth
-//! range (`view`), footprints and pair counts (`footprint`, then a scan), the (cell, particle)
+//! mirroring `fluidcast_grid::PerspectiveGrid::build`: particles to view space (`view`; the
+//! depth range and the sample depths are the CPU's, in f64, with no round trip), footprints and pair counts (`footprint`, then a scan), the (cell, particle)
 //! pairs with their merge bits (`emit`), the radix sort, and the cells (`cell_starts`,
 //! `make_cells`); `bundle_ranges` runs at the head of the plan's pass.
 
 use std::time::Instant;
 
-use fluidcast_grid::{depth_range, SampleDepths};
+use bytemuck::Zeroable;
+use fluidcast_grid::{support_depth_range, SampleDepths};
 use fluidcast_render::{ms, RenderError, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::ViewFrame;
@@ -97,9 +98,9 @@ impl Gpu {
         if n == 0 {
             return Ok(None);
         }
-        let counters = self.upload("counters", &[GridCounters::START]);
-        let vparts = self.view(ctx, particles, &counters)?;
-        let Some(zs) = self.sample_depths(ctx, &counters, frame, params)? else {
+        let counters = self.upload("counters", &[GridCounters::zeroed()]);
+        let vparts = self.view(ctx, particles)?;
+        let Some(zs) = self.sample_depths(ctx, particles, frame, params)? else {
             push_stage(&mut ctx.stats, "grid", ms(t));
             return Ok(None);
         };
@@ -124,13 +125,8 @@ impl Gpu {
         }))
     }
 
-    /// Stage 1: particles to view space and their depth range (into `counters`).
-    fn view(
-        &self,
-        ctx: &mut FrameCtx,
-        particles: &Particles,
-        counters: &wgpu::Buffer,
-    ) -> Result<wgpu::Buffer, GpuError> {
+    /// Stage 1: particles to view space.
+    fn view(&self, ctx: &mut FrameCtx, particles: &Particles) -> Result<wgpu::Buffer, GpuError> {
         let n = particles.len() as u32;
         let world = self.upload("world particles", &world(particles));
         let vparts = self.buffer("view particles", 32 * n as u64, RW, None);
@@ -138,7 +134,6 @@ impl Gpu {
             ("P", &ctx.frame_buf),
             ("world", &world),
             ("vparts", &vparts),
-            ("counters", counters),
         ];
         self.submit_pass(&mut ctx.timer, "gpu_grid", |pass| {
             self.dispatch(pass, &self.pipes.view, &binds, n.div_ceil(256))
@@ -146,17 +141,17 @@ impl Gpu {
         Ok(vparts)
     }
 
-    /// The sample depths for the particles' depth range, placed exactly as the CPU places
-    /// them ([`SampleDepths`]), in f32; `None` when nothing lies in front of the camera.
+    /// The sample depths, found and placed in f64 exactly as the CPU renderer finds and
+    /// places them ([`support_depth_range`], [`SampleDepths`]), in f32; `None` when nothing
+    /// lies in front of the camera.
     fn sample_depths(
         &self,
         ctx: &mut FrameCtx,
-        counters: &wgpu::Buffer,
+        particles: &Particles,
         frame: &ViewFrame,
         params: &RenderParams,
     ) -> Result<Option<Vec<f32>>, GpuError> {
-        let (zmin, zmax) = self.counters(counters)?.depth_range();
-        let Some((near, far)) = depth_range(zmin, zmax, frame.parallel.is_none()) else {
+        let Some((near, far)) = support_depth_range(particles, frame) else {
             return Ok(None);
         };
         let dz = params.grid.depth_samples;

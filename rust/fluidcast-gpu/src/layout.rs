@@ -88,13 +88,11 @@ const _: () = assert!(std::mem::size_of::<GpuSpan>() == 48);
 const _: () = assert!(std::mem::size_of::<GridCounters>() == 32);
 const _: () = assert!(std::mem::size_of::<PlanCounters>() == 64);
 
-/// grid.wgsl's `counters`, by name: what `view` and `footprint` accumulate and the host reads.
+/// grid.wgsl's `counters`, by name: what `footprint` and `cell_starts` accumulate and the
+/// host reads.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable, Debug)]
 pub(crate) struct GridCounters {
-    /// Smallest z − H and largest z + H of the particles (view space), as `ordered` u32.
-    pub(crate) zmin: u32,
-    pub(crate) zmax: u32,
     /// Particles whose support touches a cell.
     pub(crate) visible: u32,
     /// The pair count as `pairs_hi` × 256 + `pairs_lo` (no 32-bit overflow while summing).
@@ -102,28 +100,12 @@ pub(crate) struct GridCounters {
     pub(crate) pairs_lo: u32,
     /// Non-empty cells.
     pub(crate) cells: u32,
-    pub(crate) pad: [u32; 2],
+    pub(crate) pad: [u32; 4],
 }
 
 impl GridCounters {
-    /// Before `view`: the min starts at the top, everything else at 0.
-    pub(crate) const START: GridCounters = GridCounters {
-        zmin: u32::MAX,
-        zmax: 0,
-        visible: 0,
-        pairs_hi: 0,
-        pairs_lo: 0,
-        cells: 0,
-        pad: [0; 2],
-    };
-
     pub(crate) fn pairs(&self) -> u64 {
         self.pairs_hi as u64 * 256 + self.pairs_lo as u64
-    }
-
-    /// The particles' depth range, from the order-preserving u32 of grid.wgsl's `ordered`.
-    pub(crate) fn depth_range(&self) -> (f64, f64) {
-        (unordered(self.zmin) as f64, unordered(self.zmax) as f64)
     }
 }
 
@@ -150,15 +132,6 @@ impl PlanCounters {
             merged_cells: self.merged_cells as u64,
             refs_sampled: self.refs_sampled as u64,
         }
-    }
-}
-
-/// f32 from the order-preserving u32 of grid.wgsl's `ordered`.
-fn unordered(u: u32) -> f32 {
-    if u & 0x8000_0000 != 0 {
-        f32::from_bits(u & 0x7fff_ffff)
-    } else {
-        f32::from_bits(!u)
     }
 }
 

@@ -12,9 +12,9 @@
 //! | greedy levels, super-pixels, merging per bundle | `plan.wgsl: greedy` | `plan_bundle` |
 //! | bundle-coherent ray casting (Alg. 2) | `raycast.wgsl` | `render_adaptive`'s caster |
 //!
-//! The host reads back three numbers on the way (the depth range, to place the depth samples
-//! exactly as the CPU does with [`fluidcast_grid::SampleDepths`]; the pair count and the cell
-//! count, to size buffers and dispatches). Buffers are kept between frames and grow only when
+//! The depth range and the sample depths are found on the host in f64, exactly as the CPU
+//! renderer finds them ([`fluidcast_grid::support_depth_range`]); the host reads back two
+//! numbers on the way (the pair count and the cell count, to size buffers and dispatches). Buffers are kept between frames and grow only when
 //! a frame needs more. [`Gpu::render_planned`] runs the last stage alone on a grid and plan
 //! built on the CPU, and [`Gpu::render_with_dump`] returns the GPU's grid and plan, so each
 //! stage can be tested against its mirror.

@@ -179,14 +179,6 @@ impl Gpu {
             })
     }
 
-    /// Waits for everything submitted so far.
-    pub(crate) fn wait(&self) -> Result<(), GpuError> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(|e| GpuError::Device(e.to_string()))
-    }
-
     /// Reads the timestamp queries of the frame into `gpu_*` stages (milliseconds).
     pub(crate) fn finish_timers(
         &self,

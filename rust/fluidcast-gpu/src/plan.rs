@@ -77,7 +77,6 @@ impl Gpu {
         self.greedy(&mut pass, ctx, grid, &plan, &a)?;
         drop(pass);
         self.queue.submit([enc.finish()]);
-        self.wait()?;
         Ok(plan)
     }
 

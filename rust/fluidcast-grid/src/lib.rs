@@ -83,20 +83,39 @@ pub fn view_particles(particles: &Particles, frame: &ViewFrame) -> ViewParticles
             }
         })
         .collect();
-    let zmax = list
+    let (zmin, zmax) = list
         .iter()
-        .map(|p| p.c[2] + p.h)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let zmin = list
-        .iter()
-        .map(|p| p.c[2] - p.h)
-        .fold(f64::INFINITY, f64::min);
+        .map(|p| (p.c[2] - p.h, p.c[2] + p.h))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), extent);
     let range = if list.is_empty() {
         None
     } else {
         depth_range(zmin, zmax, frame.parallel.is_none())
     };
     ViewParticles { list, range }
+}
+
+fn extent(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
+    (a.0.min(b.0), a.1.max(b.1))
+}
+
+/// `[near, far]` of the particles' supports as [`view_particles`] finds it (the same f64
+/// arithmetic, so the same sample depths), without keeping the view-space particles: what the
+/// GPU grid places its depth samples by.
+pub fn support_depth_range(particles: &Particles, frame: &ViewFrame) -> Option<(f64, f64)> {
+    if particles.is_empty() {
+        return None;
+    }
+    let (zmin, zmax) = (0..particles.len())
+        .into_par_iter()
+        .map(|j| {
+            let p = particles.positions[j];
+            let v = frame.to_view(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            let h = particles.radii[j] as f64;
+            (v.z - h, v.z + h)
+        })
+        .reduce(|| (f64::INFINITY, f64::NEG_INFINITY), extent);
+    depth_range(zmin, zmax, frame.parallel.is_none())
 }
 
 /// `[near, far]` from the smallest and largest view depth of any support (`zmin`, `zmax`):

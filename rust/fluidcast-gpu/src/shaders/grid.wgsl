@@ -1,14 +1,13 @@
 // The sparse perspective grid on the GPU (Hochstetter et al. 2016, Sec. 6.1), mirroring
-// fluidcast_grid::PerspectiveGrid::build: particles to view space and the depth range
-// (`view`), each particle's bundle rectangle and cell depth range and its number of
-// (cell, particle) pairs (`footprint`), the pairs with their keys (`emit`; the key is
+// fluidcast_grid::PerspectiveGrid::build: particles to view space (`view`; the depth range
+// and so the sample depths come from the host, in f64 as the CPU finds them), each particle's
+// bundle rectangle and cell depth range and its number of (cell, particle) pairs (`footprint`), the pairs with their keys (`emit`; the key is
 // ((bundle * cells_z + z) << 1) | merge bit, the value the particle), and after the radix sort
 // the cells (`cell_starts`, `cells`) and each bundle's cell range (`bundle_ranges`).
 
 @group(0) @binding(3) var<storage, read> world: array<vec4<f32>>;        // (x, y, z, H), (V, q, m, 0)
 @group(0) @binding(4) var<storage, read_write> vparts: array<vec4<f32>>; // the same in view space
-// [ordered min z - H, ordered max z + H, visible particles, sum of pairs / 256,
-//  sum of pairs % 256, cells]
+// [visible particles, sum of pairs / 256, sum of pairs % 256, cells] (layout.rs: GridCounters)
 @group(0) @binding(5) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read> depths: array<f32>;
 @group(0) @binding(7) var<storage, read_write> foot: array<vec4<u32>>;   // (bx0, bx1, by0, by1), (z0, z1, -, -)
@@ -22,26 +21,9 @@
 // [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
 @group(0) @binding(15) var<storage, read_write> guard: array<atomic<u32>>;
 
-var<workgroup> wg_min: atomic<u32>;
-var<workgroup> wg_max: atomic<u32>;
-
-/// f32 → u32 with the same order (for atomic min/max of floats).
-fn ordered(f: f32) -> u32 {
-    let b = bitcast<u32>(f);
-    if ((b & 0x80000000u) != 0u) {
-        return ~b;
-    }
-    return b | 0x80000000u;
-}
-
 @compute @workgroup_size(256)
 fn view(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
         @builtin(local_invocation_index) li: u32) {
-    if (li == 0u) {
-        atomicStore(&wg_min, 0xffffffffu);
-        atomicStore(&wg_max, 0u);
-    }
-    workgroupBarrier();
     let j = group_index(wg, nw) * 256u + li;
     if (j < P.n_particles) {
         let a = world[2u * j];
@@ -49,13 +31,6 @@ fn view(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<
         let c = vec3<f32>(dot(d, P.right.xyz), dot(d, P.up.xyz), dot(d, P.forward.xyz));
         vparts[2u * j] = vec4<f32>(c, a.w);
         vparts[2u * j + 1u] = world[2u * j + 1u];
-        atomicMin(&wg_min, ordered(c.z - a.w));
-        atomicMax(&wg_max, ordered(c.z + a.w));
-    }
-    workgroupBarrier();
-    if (li == 0u) {
-        atomicMin(&counters[0], atomicLoad(&wg_min));
-        atomicMax(&counters[1], atomicLoad(&wg_max));
     }
 }
 
@@ -161,7 +136,7 @@ fn footprint(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: 
     }
     workgroupBarrier();
     if (li < 3u) {
-        atomicAdd(&counters[2u + li], atomicLoad(&wg_sums[li]));
+        atomicAdd(&counters[li], atomicLoad(&wg_sums[li]));
     }
 }
 
@@ -214,7 +189,7 @@ fn cell_starts(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
     }
     workgroupBarrier();
     if (li == 0u) {
-        atomicAdd(&counters[5], atomicLoad(&wg_sums[0]));
+        atomicAdd(&counters[3], atomicLoad(&wg_sums[0]));
     }
 }
 

@@ -116,9 +116,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         limit = depth_limit[j * P.width + i];
     }
 
+    // Per sample of the span: Σ V A W (or Σ m W for the density field) and Σ V W.
     var weighted: array<f32, MAXS>;
     var shepard: array<f32, MAXS>;
-    var density: array<f32, MAXS>;
+    let is_density = P.field == FIELD_DENSITY;
 
     var guarded = false;
     let s0 = bundle_cells[b];
@@ -183,7 +184,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         for (var m = 0u; m < n; m = m + 1u) { // only samples 0..n are used
             weighted[m] = 0.0;
             shepard[m] = 0.0;
-            density[m] = 0.0;
         }
         let ref_count = span_refs(span.first, span.count);
         tick(1u);
@@ -236,9 +236,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                         let dz = z - tc;
                         let w = kernel_w(sqrt(r2 + dd * dz * dz), pa.w);
                         if (w > 0.0) {
-                            weighted[m] = weighted[m] + pb.x * pb.y * w;
+                            weighted[m] = weighted[m] + select(pb.x * pb.y, pb.z, is_density) * w;
                             shepard[m] = shepard[m] + pb.x * w;
-                            density[m] = density[m] + pb.z * w;
                         }
                     }
                 }
@@ -252,7 +251,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 }
                 var q = weighted[m] / shepard[m];
                 if (P.field == FIELD_SPH) { q = weighted[m]; }
-                if (P.field == FIELD_DENSITY) { q = density[m]; }
+                if (is_density) { q = weighted[m]; }
                 let za = span_z[m];
                 let zb = min(span_z[m + 1u], limit);
                 if (za >= limit) {
