@@ -313,7 +313,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
             );
             let opt = |v: f64| if v.is_nan() { None } else { Some(v) };
             gpu_rows.push(json!({"error_tolerance": tol, "grid_ms": r.median("grid"), "adapt_ms": r.median("adapt"),
-                                 "raycast_ms": r.median("raycast"), "total_ms": r.median("total"),
+                                 "raycast_ms": r.median("raycast"), "readback_ms": opt(r.median("readback")),
+                                 "upload_ms": opt(r.median("upload")), "total_ms": r.median("total"),
                                  "gpu_grid_ms": opt(k[0]), "gpu_sort_ms": opt(k[1]), "gpu_adapt_ms": opt(k[2]),
                                  "gpu_raycast_ms": opt(k[3]), "speedup_total_vs_cpu": speedup,
                                  "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share}));

@@ -128,7 +128,9 @@ impl Gpu {
     /// Stage 1: particles to view space.
     fn view(&self, ctx: &mut FrameCtx, particles: &Particles) -> Result<wgpu::Buffer, GpuError> {
         let n = particles.len() as u32;
+        let t = Instant::now();
         let world = self.upload("world particles", &world(particles));
+        push_stage(&mut ctx.stats, "upload", ms(t));
         let vparts = self.buffer("view particles", 32 * n as u64, RW, None);
         let binds = [
             ("P", &ctx.frame_buf),

@@ -196,6 +196,7 @@ impl Gpu {
             (&samples, 4 * bundles),
             (b.guard, 4),
         ];
+        let t = Instant::now();
         let guarded = self.fetch_with(&parts, |got| {
             image.rgba = cast(got[0]);
             image.depth = cast::<f32>(got[1]);
@@ -205,6 +206,8 @@ impl Gpu {
             stats.samples = cast::<u32>(got[2]).iter().map(|&s| s as u64).sum();
             cast::<u32>(got[3])[0] != 0
         })?;
+        // Waiting for the ray caster, then copying the image back (included in `raycast`).
+        push_stage(stats, "readback", ms(t));
         if guarded {
             return Err(self.loop_limit_error("the grid, the error analysis or the ray casting"));
         }
