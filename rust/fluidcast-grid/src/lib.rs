@@ -226,16 +226,23 @@ impl Ray {
         (t, q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     }
 
-    /// The view-depth interval in which the ray is inside the particle's support, if any.
+    /// The ray's passage through the particle's support, if it has one: the depth interval
+    /// inside and the distances to the centre along it (the form raycast.wgsl mirrors).
     #[inline]
-    pub fn support_interval(&self, p: &ViewParticle) -> Option<(f64, f64)> {
+    pub fn passage(&self, p: &ViewParticle) -> Option<Passage> {
         let (t, r2) = self.closest_approach(p);
         let h2 = p.h * p.h;
         if r2 >= h2 {
             return None;
         }
         let half = ((h2 - r2) / self.dd).sqrt();
-        Some((t - half, t + half))
+        Some(Passage {
+            z0: t - half,
+            z1: t + half,
+            t,
+            r2,
+            dd: self.dd,
+        })
     }
 
     /// Distance from the ray's point at depth `z` to the particle centre.
@@ -247,6 +254,27 @@ impl Ray {
             self.o[2] + z * self.d[2] - p.c[2],
         ];
         (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt()
+    }
+}
+
+/// A ray inside a particle's support: from view depth `z0` to `z1`, nearest the centre at
+/// depth `t` (squared distance `r2` there).
+#[derive(Debug, Clone, Copy)]
+pub struct Passage {
+    pub z0: f64,
+    pub z1: f64,
+    pub t: f64,
+    pub r2: f64,
+    /// |d|² of the ray.
+    dd: f64,
+}
+
+impl Passage {
+    /// Distance from the ray's point at depth `z` to the particle centre.
+    #[inline]
+    pub fn distance_at(&self, z: f64) -> f64 {
+        let dz = z - self.t;
+        (self.r2 + self.dd * dz * dz).sqrt()
     }
 }
 

@@ -145,3 +145,44 @@ fn within_matches_a_scan() {
         assert_eq!(r.collect::<Vec<_>>(), want);
     }
 }
+
+/// The GPU places its depth samples by `support_depth_range`: it must be exactly the range the
+/// CPU's `view_particles` finds (same samples on both), and `None` for no particles or nothing
+/// in front of a perspective camera.
+#[test]
+fn support_depth_range_is_the_cpu_range() {
+    let p = cloud(300, 9);
+    for parallel in [false, true] {
+        let f = frame(parallel, 40, 30);
+        let range = support_depth_range(&p, &f);
+        assert!(range.is_some());
+        assert_eq!(range, view_particles(&p, &f).range, "parallel {parallel}");
+        // The extremes are reached: the nearest and farthest supports bound the range.
+        let (near, far) = range.unwrap();
+        let zs: Vec<(f64, f64)> = view_particles(&p, &f)
+            .list
+            .iter()
+            .map(|v| (v.c[2] - v.h, v.c[2] + v.h))
+            .collect();
+        assert_eq!(
+            far,
+            zs.iter().map(|z| z.1).fold(f64::NEG_INFINITY, f64::max)
+        );
+        if parallel {
+            assert_eq!(near, zs.iter().map(|z| z.0).fold(f64::INFINITY, f64::min));
+        }
+    }
+    assert_eq!(
+        support_depth_range(&Particles::default(), &frame(false, 8, 8)),
+        None
+    );
+    let mut behind = cloud(20, 4);
+    for x in behind.positions.iter_mut() {
+        x[2] += 50.0; // behind the camera, which looks down -z from about z = 2.7
+    }
+    let f = frame(false, 8, 8);
+    assert_eq!(
+        support_depth_range(&behind, &f),
+        view_particles(&behind, &f).range
+    );
+}

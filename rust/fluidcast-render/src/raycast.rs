@@ -32,20 +32,13 @@ impl Sums {
         zs: &[f64],
         kernel: Kernel,
     ) -> Option<std::ops::Range<usize>> {
-        // As raycast.wgsl: the interval and the distances from the closest approach.
-        let (t, r2) = ray.closest_approach(p);
-        let h2 = p.h * p.h;
-        if r2 >= h2 {
-            return None;
-        }
-        let half = ((h2 - r2) / ray.dd).sqrt();
-        let range = within(zs, t - half, t + half);
+        let pass = ray.passage(p)?;
+        let range = within(zs, pass.z0, pass.z1);
         if range.is_empty() {
             return None;
         }
         for k in range.clone() {
-            let dz = zs[k] - t;
-            let wgt = kernel.eval((r2 + ray.dd * dz * dz).sqrt(), p.h);
+            let wgt = kernel.eval(pass.distance_at(zs[k]), p.h);
             if wgt > 0.0 {
                 self.weighted[k] += p.v * p.a * wgt;
                 self.shepard[k] += p.v * wgt;

@@ -217,7 +217,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                     let m0 = cache_m[k].x;
                     let m1 = cache_m[k].y;
                     tick(2u + m1 - m0); // the k loop and the m loop, which also counts its exit
-                    // The support interval from the closest approach (Ray::support_interval):
+                    // The support interval from the closest approach (Ray::passage):
                     // no h² − |o − c|² cancellation, so f32 loses only ~1e-5 H at the edge.
                     let oc = pa.xyz - o;
                     let tc = dot(d, oc) / dd;
