@@ -186,3 +186,42 @@ fn support_depth_range_is_the_cpu_range() {
         view_particles(&behind, &f).range
     );
 }
+
+/// A ray's passage through a support: it enters and leaves at distance H from the centre, is
+/// nearest at `t`, and there is none exactly when the ray's closest distance is H or more.
+#[test]
+fn passage_enters_and_leaves_at_the_support_radius() {
+    let p = cloud(200, 17);
+    for parallel in [false, true] {
+        let f = frame(parallel, 23, 17);
+        let vp = view_particles(&p, &f).list;
+        let (mut inside, mut outside) = (0, 0);
+        for j in 0..17 {
+            for i in 0..23 {
+                let ray = Ray::through_pixel(&f, i, j);
+                for q in &vp {
+                    let closest = ray.distance_at(ray.closest_approach(q).0, q);
+                    match ray.passage(q) {
+                        Some(s) => {
+                            inside += 1;
+                            for z in [s.z0, s.z1] {
+                                assert!((ray.distance_at(z, q) - q.h).abs() < 1e-9 * q.h);
+                                assert!((s.distance_at(z) - q.h).abs() < 1e-9 * q.h);
+                            }
+                            assert!(s.z0 <= s.t && s.t <= s.z1 && closest < q.h);
+                            assert!((s.distance_at(s.t) - closest).abs() < 1e-9);
+                        }
+                        None => {
+                            outside += 1;
+                            assert!(closest >= q.h * (1.0 - 1e-12), "{closest} < {}", q.h);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            inside > 100 && outside > 100,
+            "{inside} inside, {outside} outside"
+        );
+    }
+}
