@@ -7,14 +7,16 @@ use serde_json::json;
 
 /// Prints the adapters, best first, and where `--backend auto` renders.
 fn adapters() -> Result<()> {
-    let list = fluidcast_backend::list_adapters();
+    let list = crate::render::without_wayland_noise(fluidcast_backend::list_adapters);
     if list.is_empty() {
         out!("no GPU adapters");
     }
     for (k, a) in list.iter().enumerate() {
         out!("adapter {k}: {a}");
     }
-    let auto = fluidcast_backend::Renderer::open(fluidcast_backend::Backend::Auto, None)?;
+    let auto = crate::render::without_wayland_noise(|| {
+        fluidcast_backend::Renderer::open(fluidcast_backend::Backend::Auto, None)
+    })?;
     out!("--backend auto renders on: {}", auto.device());
     Ok(())
 }

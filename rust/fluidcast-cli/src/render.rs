@@ -78,9 +78,8 @@ pub fn open_backend(s: &SamplingArgs) -> Result<Renderer> {
             bail!("--backend gpu renders the adaptive mode only (drop --mode reference)")
         }
         (_, Mode::Reference) => Renderer::cpu(),
-        (b, Mode::Adaptive) => {
-            Renderer::open(b, s.adapter.as_deref()).with_context(|| format!("--backend {b}"))?
-        }
+        (b, Mode::Adaptive) => without_wayland_noise(|| Renderer::open(b, s.adapter.as_deref()))
+            .with_context(|| format!("--backend {b}"))?,
     };
     if let Some(n) = r.note() {
         eprintln!("note: {n}");
@@ -89,6 +88,27 @@ pub fn open_backend(s: &SamplingArgs) -> Result<Renderer> {
         eprintln!("{}", r.device());
     }
     Ok(r)
+}
+
+/// What Mesa's Vulkan drivers print on a machine without a desktop session when an instance
+/// is made (libwayland looking for a display nobody asked for): not ours, and alarming.
+const WAYLAND_NOISE: &str = "XDG_RUNTIME_DIR is invalid or not set in the environment.";
+
+/// Runs `f` (which opens GPU adapters) with stderr captured, and passes on everything it
+/// printed except libwayland's complaint about a missing display.
+pub fn without_wayland_noise<T>(f: impl FnOnce() -> T) -> T {
+    #[cfg(unix)]
+    if let Ok(mut redirect) = gag::BufferRedirect::stderr() {
+        let out = f();
+        let mut text = String::new();
+        let _ = std::io::Read::read_to_string(&mut redirect, &mut text);
+        drop(redirect);
+        for line in text.lines().filter(|l| !l.contains(WAYLAND_NOISE)) {
+            eprintln!("{line}");
+        }
+        return out;
+    }
+    f()
 }
 
 fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<()> {

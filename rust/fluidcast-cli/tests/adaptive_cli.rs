@@ -210,6 +210,15 @@ fn gpu_backend_from_the_command_line() {
             "{out}\n{err}"
         );
     }
+    // Probing adapters prints nothing of the drivers' own: Mesa's Vulkan drivers have
+    // libwayland complain about XDG_RUNTIME_DIR on a machine without a desktop session.
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args(["info", "--adapters"])
+        .env_remove("XDG_RUNTIME_DIR")
+        .output()
+        .unwrap();
+    let noise = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && !noise.contains("XDG_RUNTIME_DIR"), "{noise}");
     // An adapter no machine has: an error naming it.
     let (ok, err) = try_render(
         &dir.join("n.exr"),

@@ -32,8 +32,12 @@ impl AdapterChoice {
     }
 }
 
-fn instance() -> wgpu::Instance {
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+/// An instance of only these APIs: an instance of all would start OpenGL/EGL too, which probes
+/// for a display and prints warnings on a headless machine even when Vulkan serves.
+fn instance(backends: wgpu::Backends) -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    desc.backends = backends;
+    wgpu::Instance::new(desc)
 }
 
 /// Smaller is better: device kind, then graphics API.
@@ -74,7 +78,7 @@ pub fn list_adapters() -> Vec<String> {
 /// Adapters best first: of every API when `all`, else of the primary APIs, falling back to
 /// OpenGL only when they have none (probing OpenGL/EGL prints warnings on headless Linux).
 fn ranked(all: bool) -> Vec<wgpu::Adapter> {
-    let list = |b| pollster::block_on(instance().enumerate_adapters(b));
+    let list = |b| pollster::block_on(instance(b).enumerate_adapters(b));
     let mut found = if all {
         list(wgpu::Backends::all())
     } else {
