@@ -218,7 +218,10 @@ fn gpu_backend_from_the_command_line() {
         .output()
         .unwrap();
     let noise = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success() && !noise.contains("XDG_RUNTIME_DIR"), "{noise}");
+    assert!(
+        o.status.success() && !noise.contains("XDG_RUNTIME_DIR"),
+        "{noise}"
+    );
     // An adapter no machine has: an error naming it.
     let (ok, err) = try_render(
         &dir.join("n.exr"),

@@ -5,7 +5,7 @@
 //! two measured f32 effects (`common::f32_explanation`); anything else is a bug.
 mod common;
 
-use common::{differing_pixels, f32_explanation, gpu, modes, shared_ddb};
+use common::{differing_pixels, f32_explanation, gpu, modes, shared_ddb, shared_pysph};
 use fluidcast_gpu::{Gpu, GpuError};
 use fluidcast_render::{plan_adaptive, render_adaptive, RenderParams};
 use fluidcast_sph::Particles;
@@ -145,28 +145,37 @@ fn spray_clumps_gaps_and_frustum_edges_match_the_cpu() {
     }
 }
 
-/// The issue's own view of the shared double dam break (it differed by 0.20 before the ray
-/// caster's support interval lost its f32 cancellation), at twice the size.
+/// Both shared data sets, perspective and parallel, in every mode: the double dam break from
+/// the issue's own view (it differed by 0.20 before the ray caster's support interval lost its
+/// f32 cancellation) and the PySPH dam break.
 #[test]
-fn shared_double_dam_break_from_above_matches_the_cpu() {
+fn shared_data_sets_match_the_cpu_in_every_mode_and_projection() {
     let Some(g) = gpu() else { return };
-    let Some((p, tf, _)) = shared_ddb() else {
-        panic!("the shared double dam break is missing");
+    let (Some(ddb), Some(pysph)) = (shared_ddb(), shared_pysph()) else {
+        panic!("the shared data sets are missing");
     };
-    let mut cam = Camera::default();
-    let (a, b) = p.support_bounds();
-    cam.reset(a.map(f64::from), b.map(f64::from));
-    cam.elevation(30.0);
-    cam.orthogonalize_view_up();
-    for (mode, adaptive) in modes() {
-        let prm = RenderParams {
-            width: 400,
-            height: 300,
-            adaptive,
-            ..Default::default()
-        };
-        let r = check(&g, &format!("double dam break {mode}"), &p, &cam, &tf, &prm);
-        eprintln!("double dam break {mode}: {r:?} (differing, edge, opaque)");
+    for (name, (p, tf, _), elevation) in [("double dam break", ddb, 30.0), ("PySPH", pysph, 20.0)] {
+        let (a, b) = p.support_bounds();
+        for parallel in [false, true] {
+            let mut cam = Camera {
+                parallel_projection: parallel,
+                ..Default::default()
+            };
+            cam.reset(a.map(f64::from), b.map(f64::from));
+            cam.elevation(elevation);
+            cam.orthogonalize_view_up();
+            for (mode, adaptive) in modes() {
+                let prm = RenderParams {
+                    width: 320,
+                    height: 240,
+                    adaptive,
+                    ..Default::default()
+                };
+                let what = format!("{name} {mode} parallel={parallel}");
+                let r = check(&g, &what, &p, &cam, &tf, &prm);
+                eprintln!("{what}: {r:?} (differing, edge, opaque)");
+            }
+        }
     }
 }
 
