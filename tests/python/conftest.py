@@ -27,8 +27,12 @@ def fluidcast(*args, check=True):
 
 
 def shared(rel):
+    """../shared/data/REL, or a skip when it is missing; a failure with
+    FLUIDCAST_REQUIRE_DATA=1 (set by the test command)."""
     p = SHARED / rel
     if not p.exists():
+        if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
+            pytest.fail(f"FLUIDCAST_REQUIRE_DATA=1 but {p} is missing")
         pytest.skip(f"{p} not present")
     return p
 

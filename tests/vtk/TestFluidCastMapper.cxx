@@ -109,6 +109,19 @@ void WritePng(const Image& img, const std::string& path)
   wr->Write();
 }
 
+/** A missing shared data set: a skip (77), or a failure with FLUIDCAST_REQUIRE_DATA=1. */
+int MissingData(const std::string& data)
+{
+  const char* require = std::getenv("FLUIDCAST_REQUIRE_DATA");
+  if (require && std::string(require) == "1")
+  {
+    std::cerr << "FAIL: FLUIDCAST_REQUIRE_DATA=1 but " << data << " is missing\n";
+    return 1;
+  }
+  std::cout << "SKIP: " << data << " not present\n";
+  return 77;
+}
+
 bool Exists(const std::string& p)
 {
   std::ifstream f(p);
@@ -254,8 +267,7 @@ int Window(const std::string& data, const std::string& array, const std::string&
 {
   if (!Exists(data))
   {
-    std::cout << "SKIP: " << data << " not present\n";
-    return 77;
+    return MissingData(data);
   }
   auto ug = Read(data);
   vtkDataArray* a = ug->GetPointData()->GetArray(array.c_str());
@@ -338,8 +350,7 @@ int Depth(const std::string& data, const std::string& array, const std::string& 
 {
   if (!Exists(data))
   {
-    std::cout << "SKIP: " << data << " not present\n";
-    return 77;
+    return MissingData(data);
   }
   auto ug = Read(data);
   double range[2];
@@ -466,8 +477,7 @@ int Bad(const std::string& data)
 {
   if (!Exists(data))
   {
-    std::cout << "SKIP: " << data << " not present\n";
-    return 77;
+    return MissingData(data);
   }
   auto ug = Read(data);
   int failures = 0;

@@ -26,6 +26,9 @@ plugin, data, array, out, cli, tolerance = sys.argv[1:7]
 backend = sys.argv[7] if len(sys.argv) > 7 else "Auto"
 tolerance = float(tolerance)
 if not os.path.exists(data):
+    if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
+        print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {data} is missing")
+        sys.exit(1)
     print(f"SKIP: {data} not present")
     sys.exit(77)
 W, H = 320, 240

@@ -4,11 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// `../shared/data/` beside the repository (see `fluidcast_testkit::shared_data`).
 fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel);
-    p.exists().then_some(p)
+    fluidcast_testkit::shared_data(rel)
 }
 
 fn render(input: &Path, out: &Path, extra: &[&str]) {
@@ -36,7 +34,6 @@ fn render(input: &Path, out: &Path, extra: &[&str]) {
 #[test]
 fn every_shared_file_renders() {
     let Some(root) = shared("") else {
-        eprintln!("SKIP: ../shared/data not present");
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -82,7 +79,6 @@ fn every_shared_file_renders() {
 #[test]
 fn double_dam_break_encodings_give_identical_images() {
     let Some(d) = shared("splash_doubledambreak") else {
-        eprintln!("SKIP: ../shared/data not present");
         return;
     };
     let dir = tempfile::tempdir().unwrap();

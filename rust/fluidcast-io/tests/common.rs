@@ -9,10 +9,7 @@ pub fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// `../shared/data/` beside the repository, if present.
+/// `../shared/data/` beside the repository (see `fluidcast_testkit::shared_data`).
 pub fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel);
-    p.exists().then_some(p)
+    fluidcast_testkit::shared_data(rel)
 }

@@ -7,7 +7,6 @@ use fluidcast_io::{read_collection, read_dataset};
 #[test]
 fn every_shared_file_reads() {
     let Some(root) = shared("") else {
-        eprintln!("SKIP: ../shared/data not present");
         return;
     };
     let mut n = 0;
@@ -38,7 +37,6 @@ fn every_shared_file_reads() {
 #[test]
 fn double_dam_break_encodings_identical() {
     let Some(dir) = shared("splash_doubledambreak") else {
-        eprintln!("SKIP: ../shared/data not present");
         return;
     };
     let base = read_dataset(dir.join("DoubleDamBreak_r0.0125_0011.vtu")).unwrap();
@@ -61,7 +59,6 @@ fn double_dam_break_encodings_identical() {
 #[test]
 fn pysph_version_0_1_base64() {
     let Some(dir) = shared("pysph_dambreak3d") else {
-        eprintln!("SKIP: ../shared/data not present");
         return;
     };
     let d = read_dataset(dir.join("dam_break_3d_fluid_01180.vtu")).unwrap();

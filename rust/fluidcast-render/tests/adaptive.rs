@@ -188,11 +188,9 @@ fn off_equals_reference_at_the_same_samples() {
     }
 }
 
+/// `../shared/data/` beside the repository (see `fluidcast_testkit::shared_data`).
 fn shared(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel);
-    p.exists().then_some(p)
+    fluidcast_testkit::shared_data(rel)
 }
 
 /// The shared datasets with an attribute, as a user would render them.
@@ -214,7 +212,6 @@ fn shared_scenes() -> Vec<(String, Particles)> {
         ("pysph_dambreak3d/dam_break_3d_fluid_01180.vtu", "p"),
     ] {
         let Some(path) = shared(file) else {
-            eprintln!("SKIP: ../shared/data/{file} not present");
             continue;
         };
         let ds = fluidcast_io::read_dataset(&path).unwrap();

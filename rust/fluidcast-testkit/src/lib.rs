@@ -2,7 +2,30 @@
 //! cloud that the renderer, grid and GPU tests share, so that their scenes stay the same
 //! particle for particle.
 
+use std::path::PathBuf;
+
 use fluidcast_sph::Particles;
+
+/// Set to 1 (the test command does) to turn a missing `../shared/data` file into a test failure
+/// instead of a skip.
+pub const REQUIRE_DATA_ENV: &str = "FLUIDCAST_REQUIRE_DATA";
+
+/// `../shared/data/REL` beside the repository, or `None` with a SKIP line when it is missing;
+/// with `FLUIDCAST_REQUIRE_DATA=1` a missing file panics instead, so that the test command
+/// cannot pass without the data.
+pub fn shared_data(rel: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(rel);
+    if p.exists() {
+        return Some(p);
+    }
+    if std::env::var(REQUIRE_DATA_ENV).as_deref() == Ok("1") {
+        panic!("{REQUIRE_DATA_ENV}=1 but {} is missing", p.display());
+    }
+    eprintln!("SKIP: {} not present", p.display());
+    None
+}
 
 /// A xorshift32 generator of values in [0, 1] (seed 0 is treated as 1).
 pub fn rng(seed: u32) -> impl FnMut() -> f32 {

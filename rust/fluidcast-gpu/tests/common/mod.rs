@@ -58,13 +58,7 @@ pub fn modes() -> [(&'static str, PlanParams); 3] {
 /// world units) under an oblique camera that frames it, or `None` with a SKIPPED line when
 /// ../shared/data does not hold it.
 pub fn shared_scene(file: &str) -> Option<(Particles, TransferFunction, Camera)> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(file);
-    if !path.exists() {
-        eprintln!("SKIPPED: {} not present", path.display());
-        return None;
-    }
+    let path = fluidcast_testkit::shared_data(file)?;
     let ds = fluidcast_io::read_dataset(&path).unwrap();
     let spec = fluidcast_sph::ParticleSpec {
         quantity: Some("velocity:mag".parse().unwrap()),
