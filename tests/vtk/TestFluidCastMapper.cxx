@@ -230,6 +230,14 @@ struct Scene
     volume->SetMapper(mapper);
     ren->AddVolume(volume);
   }
+  /** The particles' point array `array` through `prop`. */
+  void Show(vtkPointSet* input, const std::string& array, vtkVolumeProperty* prop)
+  {
+    mapper->SetInputData(input);
+    mapper->SelectScalarArray(array.c_str());
+    mapper->SetScalarModeToUsePointFieldData();
+    volume->SetProperty(prop);
+  }
 };
 
 void SetupCamera(Scene& s, const double bounds[6])
@@ -247,6 +255,17 @@ struct Diff
   double mean = 0;
   size_t above2 = 0;
 };
+
+/** Pixels that are not the white background. */
+size_t Drawn(const Image& img)
+{
+  size_t drawn = 0;
+  for (size_t k = 0; k < img.rgb.size(); k += 3)
+  {
+    drawn += img.rgb[k] != 255 || img.rgb[k + 1] != 255 || img.rgb[k + 2] != 255;
+  }
+  return drawn;
+}
 
 Diff Compare(const Image& a, const Image& b)
 {
@@ -283,10 +302,7 @@ int Window(const std::string& data, const std::string& array, const std::string&
 
   Scene s;
   s.ren->SetBackground(1, 1, 1);
-  s.mapper->SetInputData(ug);
-  s.mapper->SelectScalarArray(array.c_str());
-  s.mapper->SetScalarModeToUsePointFieldData();
-  s.volume->SetProperty(Property(tf, unit));
+  s.Show(ug, array, Property(tf, unit));
   const double e = tolerance == "off" ? 0.0 : std::stod(tolerance);
   s.mapper->SetErrorTolerance(e);
   double b[6];
@@ -324,11 +340,7 @@ int Window(const std::string& data, const std::string& array, const std::string&
     return 1;
   }
   Diff d = Compare(ours, theirs);
-  size_t drawn = 0;
-  for (size_t k = 0; k < ours.rgb.size(); k += 3)
-  {
-    drawn += ours.rgb[k] != 255 || ours.rgb[k + 1] != 255 || ours.rgb[k + 2] != 255;
-  }
+  const size_t drawn = Drawn(ours);
   std::cout << "mapper vs CLI: max abs " << d.max << "/255, mean " << d.mean << "/255, "
             << d.above2 << " channels above 2/255; " << drawn << " pixels drawn\n";
   if (drawn < static_cast<size_t>(W * H / 20))
@@ -358,10 +370,7 @@ int Depth(const std::string& data, const std::string& array, const std::string& 
   TF tf = MakeTF(range[0], range[1]);
 
   Scene s;
-  s.mapper->SetInputData(ug);
-  s.mapper->SelectScalarArray(array.c_str());
-  s.mapper->SetScalarModeToUsePointFieldData();
-  s.volume->SetProperty(Property(tf, 0.05));
+  s.Show(ug, array, Property(tf, 0.05));
   double b[6];
   s.mapper->GetBounds(b);
   // Look down -z so "in front" and "behind" are z ranges; a parallel projection gives the
@@ -561,10 +570,7 @@ int Backends(const std::string& data, const std::string& array, const std::strin
   ug->GetPointData()->GetArray(array.c_str())->GetRange(range, -1);
   Scene s;
   s.ren->SetBackground(1, 1, 1);
-  s.mapper->SetInputData(ug);
-  s.mapper->SelectScalarArray(array.c_str());
-  s.mapper->SetScalarModeToUsePointFieldData();
-  s.volume->SetProperty(Property(MakeTF(range[0], range[1]), 0.1));
+  s.Show(ug, array, Property(MakeTF(range[0], range[1]), 0.1));
   double b[6];
   s.mapper->GetBounds(b);
   SetupCamera(s, b);
@@ -605,11 +611,7 @@ int Backends(const std::string& data, const std::string& array, const std::strin
     return 1;
   }
   Diff d = Compare(cpu, gpu);
-  size_t drawn = 0;
-  for (size_t k = 0; k < cpu.rgb.size(); k += 3)
-  {
-    drawn += cpu.rgb[k] != 255 || cpu.rgb[k + 1] != 255 || cpu.rgb[k + 2] != 255;
-  }
+  const size_t drawn = Drawn(cpu);
   std::cout << "GPU vs CPU in a VTK window: max abs " << d.max << "/255, mean " << d.mean
             << "/255; " << drawn << " pixels drawn\n";
   if (drawn < static_cast<size_t>(W * H / 20))
