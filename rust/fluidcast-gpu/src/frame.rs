@@ -174,15 +174,7 @@ impl Gpu {
         ])?;
         let cells: Vec<GpuCell> = cast(&got[0]);
         Ok(GpuDump {
-            cells: cells
-                .iter()
-                .map(|c| Cell {
-                    z: c.z,
-                    start: c.start,
-                    unique_end: c.unique_end,
-                    end: c.end,
-                })
-                .collect(),
+            cells: cells.iter().map(GpuCell::cell).collect(),
             cell_bundles: cells.iter().map(|c| c.bundle).collect(),
             refs: cast(&got[1]),
             bundle_cells: cast(&got[2]),

@@ -4,6 +4,7 @@
 //! source: [`wgsl_prelude`] writes them into every shader as constants.
 
 use bytemuck::{Pod, Zeroable};
+use fluidcast_grid::Cell;
 use fluidcast_render::RenderParams;
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{TransferFunction, ViewFrame};
@@ -64,6 +65,30 @@ pub(crate) struct GpuCell {
     pub(crate) end: u32,
     pub(crate) bundle: u32,
     pub(crate) pad: [u32; 3],
+}
+
+impl GpuCell {
+    /// The CPU grid's cell `c` of bundle `bundle`.
+    pub(crate) fn new(c: &Cell, bundle: u32) -> GpuCell {
+        GpuCell {
+            z: c.z,
+            start: c.start,
+            unique_end: c.unique_end,
+            end: c.end,
+            bundle,
+            pad: [0; 3],
+        }
+    }
+
+    /// The cell as the CPU grid has it (without its bundle).
+    pub(crate) fn cell(&self) -> Cell {
+        Cell {
+            z: self.z,
+            start: self.start,
+            unique_end: self.unique_end,
+            end: self.end,
+        }
+    }
 }
 
 /// A span of the plan (`Span` in common.wgsl).

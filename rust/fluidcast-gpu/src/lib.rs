@@ -14,8 +14,8 @@
 //!
 //! The depth range and the sample depths are found on the host in f64, exactly as the CPU
 //! renderer finds them ([`fluidcast_grid::support_depth_range`]); the host reads back two
-//! numbers on the way (the pair count and the cell count, to size buffers and dispatches). Buffers are kept between frames and grow only when
-//! a frame needs more. [`Gpu::render_planned`] runs the last stage alone on a grid and plan
+//! numbers on the way (the pair count and the cell count, to size buffers and dispatches).
+//! Buffers are kept between frames and grow only when a frame needs more. [`Gpu::render_planned`] runs the last stage alone on a grid and plan
 //! built on the CPU, and [`Gpu::render_with_dump`] returns the GPU's grid and plan, so each
 //! stage can be tested against its mirror.
 //!

@@ -62,15 +62,11 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
     };
     for b in 0..nb {
         up.bundle_cells.push(up.cells.len() as u32);
-        up.cells
-            .extend(grid.bundle_cells(b).iter().map(|c| GpuCell {
-                z: c.z,
-                start: c.start,
-                unique_end: c.unique_end,
-                end: c.end,
-                bundle: b as u32,
-                pad: [0; 3],
-            }));
+        up.cells.extend(
+            grid.bundle_cells(b)
+                .iter()
+                .map(|c| GpuCell::new(c, b as u32)),
+        );
         let bs = plan.bundle_spans(b);
         up.span_count.push(bs.len() as u32);
         up.spans.extend(bs.iter().map(|s| {
