@@ -39,7 +39,18 @@ struct vtkFluidCastVolumeMapper::Internals
   vtkTimeStamp UploadTime;
   vtkPointSet* UploadedInput = nullptr;
   bool UploadOk = false;
+  std::string UploadError;
 };
+
+// vtkErrorMacro that also keeps the message for GetLastError (scripts read it there).
+#define FLUIDCAST_FAIL(message)                                                                \
+  do                                                                                           \
+  {                                                                                            \
+    std::ostringstream fluidcastMessage;                                                       \
+    fluidcastMessage << message;                                                               \
+    this->LastError = fluidcastMessage.str();                                                  \
+    vtkErrorMacro(<< this->LastError);                                                         \
+  } while (false)
 
 namespace
 {
@@ -150,21 +161,28 @@ double* vtkFluidCastVolumeMapper::GetBounds()
 bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
 {
   Internals& I = *this->Impl;
-  if (I.UploadedInput == input && I.UploadTime > input->GetMTime() &&
-    I.UploadTime > this->GetMTime())
+  if (I.UploadedInput != input || I.UploadTime <= input->GetMTime() ||
+    I.UploadTime <= this->GetMTime())
   {
-    return I.UploadOk;
+    I.UploadedInput = input;
+    I.UploadTime.Modified();
+    this->LastError.clear();
+    I.UploadOk = this->UploadNow(input);
+    I.UploadError = this->LastError;
   }
-  I.UploadedInput = input;
-  I.UploadTime.Modified();
-  I.UploadOk = false;
+  this->LastError = I.UploadError;
+  return I.UploadOk;
+}
 
+//------------------------------------------------------------------------------
+bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
+{
   int cellFlag = 0;
   vtkDataArray* scalars = vtkAbstractMapper::GetScalars(input, this->ScalarMode,
     this->ArrayAccessMode, this->ArrayId, this->ArrayName, cellFlag);
   if (!scalars)
   {
-    vtkErrorMacro(<< "no scalar array to render"
+    FLUIDCAST_FAIL("no scalar array to render"
                   << (this->ArrayName && this->ArrayName[0]
                          ? std::string(": the input has no point array '") + this->ArrayName +
                         "'"
@@ -173,7 +191,7 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
   }
   if (cellFlag)
   {
-    vtkErrorMacro(<< "array '" << (scalars->GetName() ? scalars->GetName() : "")
+    FLUIDCAST_FAIL("array '" << (scalars->GetName() ? scalars->GetName() : "")
                   << "' is cell data; fluidcast renders point (particle) data");
     return false;
   }
@@ -181,7 +199,7 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
 
   try
   {
-    fluidcast::Renderer& r = *I.Renderer;
+    fluidcast::Renderer& r = *this->Impl->Renderer;
     std::ostringstream name;
     name << "vtkFluidCastVolumeMapper input (" << input->GetClassName() << ", "
          << input->GetNumberOfPoints() << " points)";
@@ -189,7 +207,7 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
     vtkDataArray* pts = input->GetPoints() ? input->GetPoints()->GetData() : nullptr;
     if (!pts || input->GetNumberOfPoints() == 0)
     {
-      vtkErrorMacro(<< "the input has no points");
+      FLUIDCAST_FAIL("the input has no points");
       return false;
     }
     if (pts->GetDataType() == VTK_FLOAT)
@@ -218,7 +236,7 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
       vtkDataArray* ra = pd->GetArray(this->RadiusArray);
       if (!ra)
       {
-        vtkErrorMacro(<< "the input has no point array '" << this->RadiusArray
+        FLUIDCAST_FAIL("the input has no point array '" << this->RadiusArray
                       << "' (RadiusArray)");
         return false;
       }
@@ -279,16 +297,16 @@ bool vtkFluidCastVolumeMapper::Upload(vtkPointSet* input)
   }
   catch (const rust::Error& e)
   {
-    vtkErrorMacro(<< e.what());
+    FLUIDCAST_FAIL(e.what());
     return false;
   }
-  I.UploadOk = true;
   return true;
 }
 
 //------------------------------------------------------------------------------
-void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
+vtkPointSet* vtkFluidCastVolumeMapper::UpdatedInput()
 {
+  this->LastError.clear();
   if (vtkAlgorithm* algo = this->GetInputAlgorithm())
   {
     algo->Update();
@@ -296,15 +314,29 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   vtkPointSet* input = vtkPointSet::SafeDownCast(this->GetDataSetInput());
   if (!input)
   {
-    vtkErrorMacro(<< "no input (needs a vtkPointSet: vtkPolyData or vtkUnstructuredGrid)");
-    return;
+    FLUIDCAST_FAIL("no input (needs a vtkPointSet: vtkPolyData or vtkUnstructuredGrid)");
+    return nullptr;
   }
   if (input->GetNumberOfPoints() == 0)
   {
-    vtkErrorMacro(<< "the input has no points");
-    return;
+    FLUIDCAST_FAIL("the input has no points");
+    return nullptr;
   }
-  if (!this->Upload(input))
+  return input;
+}
+
+//------------------------------------------------------------------------------
+int vtkFluidCastVolumeMapper::UpdateParticles()
+{
+  vtkPointSet* input = this->UpdatedInput();
+  return input && this->Upload(input) ? 1 : 0;
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
+{
+  vtkPointSet* input = this->UpdatedInput();
+  if (!input || !this->Upload(input))
   {
     return;
   }
@@ -313,7 +345,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   vtkCamera* cam = ren->GetActiveCamera();
   if (cam->GetUseHorizontalViewAngle() || cam->GetUseOffAxisProjection())
   {
-    vtkErrorMacro(<< "cameras with a horizontal view angle or off-axis projection are not "
+    FLUIDCAST_FAIL("cameras with a horizontal view angle or off-axis projection are not "
                      "supported");
     return;
   }
@@ -433,7 +465,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   }
   catch (const rust::Error& e)
   {
-    vtkErrorMacro(<< e.what());
+    FLUIDCAST_FAIL(e.what());
     return;
   }
 
@@ -448,7 +480,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   vtkOpenGLRenderWindow* glwin = vtkOpenGLRenderWindow::SafeDownCast(win);
   if (!glwin)
   {
-    vtkErrorMacro(<< "needs an OpenGL render window");
+    FLUIDCAST_FAIL("needs an OpenGL render window");
     return;
   }
   vtkOpenGLState* state = glwin->GetState();
@@ -476,4 +508,5 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastMaxRadius: " << this->LastMaxRadius << "\n";
   os << indent << "LastSamples: " << this->LastSamples << "\n";
   os << indent << "LastRenderMilliseconds: " << this->LastRenderMilliseconds << "\n";
+  os << indent << "LastError: " << (this->LastError.empty() ? "(none)" : this->LastError) << "\n";
 }

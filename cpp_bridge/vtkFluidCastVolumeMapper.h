@@ -154,7 +154,21 @@ public:
   vtkGetMacro(LastRenderMilliseconds, double);
   /** Where the last frame rendered: "CPU (N threads)" or "GPU: <adapter>". */
   const char* GetLastDevice() { return this->LastDevice.c_str(); }
+  /**
+   * Why the last render or UpdateParticles drew or prepared nothing (the message also
+   * reported with vtkErrorMacro); "" when it succeeded.
+   */
+  const char* GetLastError() { return this->LastError.c_str(); }
   ///@}
+
+  /**
+   * Updates the input and hands the particles to fluidcast now, as the first render would:
+   * the scalar array, the support radii, the particle volumes and the neighbour grid (what
+   * does not depend on the view) are checked and built. Returns 1 on success, 0 on bad
+   * input, with the reason in GetLastError() and reported with vtkErrorMacro. Scripts call it
+   * to fail where they add the particles, not at the first render.
+   */
+  int UpdateParticles();
 
   /**
    * Bounds of the input grown by the particles' support radius (the extent of the field).
@@ -186,13 +200,18 @@ protected:
   vtkIdType LastSamples = 0;
   double LastRenderMilliseconds = 0.0;
   std::string LastDevice;
+  std::string LastError;
 
 private:
   vtkFluidCastVolumeMapper(const vtkFluidCastVolumeMapper&) = delete;
   void operator=(const vtkFluidCastVolumeMapper&) = delete;
 
-  /** Hands the input to the Rust renderer when it or the settings changed. */
+  /** Updates the input algorithm; the input if it is a vtkPointSet with points. */
+  vtkPointSet* UpdatedInput();
+  /** Hands the input to the Rust renderer when it or the settings changed (else the last
+   * outcome, its error message included). */
   bool Upload(vtkPointSet* input);
+  bool UploadNow(vtkPointSet* input);
 
   struct Internals;
   std::unique_ptr<Internals> Impl;
