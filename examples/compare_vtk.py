@@ -14,7 +14,7 @@ Writes to DIR: each image as PNG, ``figure.png`` (the images in a row, the diffe
 fluidcast's reference below each), ``table.md`` and ``table.json`` (wall time to image,
 max abs / RMSE / 99th percentile vs fluidcast's reference, memory of the intermediate grid),
 and the ``camera.json`` and ``tf.json`` fluidcast used (made from the VTK camera and transfer
-function with examples/fluidcast_vtk.py).
+function with the fluidcast package's helpers, fluidcast.camera and fluidcast.transfer).
 
 Differences are in 0..1 on the 8-bit images (PNG as VTK writes screenshots). Timings are
 wall-clock seconds on this machine, including reading the file; run on a quiet machine and
@@ -25,14 +25,16 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import fluidcast_vtk as fv  # noqa: E402
+from fluidcast.camera import load_camera, reset_camera, save_camera
+from fluidcast.cli import fluidcast_binary, run_fluidcast
+from fluidcast.data import point_array, read_points, support_radius, volume_arrays
+from fluidcast.images import difference, read_png, write_png
+from fluidcast.transfer import matplotlib_tf, preset_to_vtk, rescaled, tf_to_preset
+from fluidcast.vtk_sph import VTK_KERNELS, render_splats, render_volume, sph_volume
 
 
 def parse_args(argv=None):
@@ -45,7 +47,7 @@ def parse_args(argv=None):
     p.add_argument("--size", default="800x600", help="image size WxH in pixels")
     p.add_argument("--resolution", default="128,256",
                    help="VTK grid points along the longest side, comma separated")
-    p.add_argument("--kernel", default="cubic", choices=list(fv.VTK_KERNELS))
+    p.add_argument("--kernel", default="cubic", choices=list(VTK_KERNELS))
     p.add_argument("--support-radius", type=float,
                    help="support radius H in world units (default: the file's support_radius "
                         "field data, else fluidcast's suggestion)")
@@ -89,13 +91,13 @@ def radius_of(ds, path, a) -> float:
             raise SystemExit(f"--support-radius {a.support_radius}: must be > 0")
         return a.support_radius
     if a.radius_array:
-        r = fv.point_array(ds, a.radius_array) * a.radius_scale
+        r = point_array(ds, a.radius_array) * a.radius_scale
         if r.max() - r.min() > 1e-9 * max(abs(r.max()), 1e-30):
             raise SystemExit(
                 f"{path}: '{a.radius_array}' varies ({r.min():g} to {r.max():g}); VTK's "
                 "vtkSPHInterpolator takes one spatial step, so pass --support-radius")
         return float(r[0])
-    return fv.support_radius(ds, path)
+    return support_radius(ds, path)
 
 
 def run(a) -> dict:
@@ -108,18 +110,18 @@ def run(a) -> dict:
     try:
         w, h = (int(x) for x in a.size.lower().split("x"))
     except ValueError:
-        raise SystemExit(f"--size '{a.size}': expected WxH, e.g. 800x600")
+        raise SystemExit(f"--size '{a.size}': expected WxH, e.g. 800x600") from None
     if not (0 < w <= 16384 and 0 < h <= 16384):
         raise SystemExit(f"--size '{a.size}': each side must be 1..16384 pixels")
     size = (w, h)
     background = numbers(a.background, 3, "--background")
-    binary = fv.fluidcast_binary()
+    binary = fluidcast_binary(Path(__file__).resolve().parents[1], build=True)
     print(f"fluidcast binary: {binary}")
 
     t0 = time.perf_counter()
-    ds = fv.read_points(path)
+    ds = read_points(path)
     vtk_read_s = time.perf_counter() - t0
-    values = fv.point_array(ds, a.array)
+    values = point_array(ds, a.array)
     n = len(values)
     if a.range:
         lo, hi = numbers(a.range, 2, "--range")
@@ -128,7 +130,7 @@ def run(a) -> dict:
     if not hi > lo:
         hi = lo + 1.0
     H = radius_of(ds, path, a)
-    mass, density = fv.volume_arrays(ds)
+    mass, density = volume_arrays(ds)
     b = np.array(ds.GetBounds()).reshape(3, 2)
     unit = a.opacity_unit_distance or float(np.linalg.norm(b[:, 1] - b[:, 0]) / np.cbrt(n))
     print(f"{path.name}: {n} particles, H = {H:g}, {a.array} in [{lo:g}, {hi:g}], "
@@ -136,20 +138,20 @@ def run(a) -> dict:
           f"{f'{mass}/{density}' if mass else 'uniform'}")
 
     if a.camera:
-        cam = fv.load_camera(a.camera)
+        cam = load_camera(a.camera)
     else:
         grown = np.c_[b[:, 0] - H, b[:, 1] + H].ravel()
-        cam = fv.reset_camera(grown, a.azimuth, a.elevation, a.zoom, size)
-    cam_file = fv.save_camera(cam, out / "camera.json")
+        cam = reset_camera(grown, a.azimuth, a.elevation, a.zoom, size)
+    cam_file = save_camera(cam, out / "camera.json")
     if a.tf:
         preset = json.loads(a.tf.read_text())
-        ctf, otf = fv.preset_to_vtk(preset)
+        ctf, otf = preset_to_vtk(preset)
         # Rescale the preset onto [lo, hi] as fluidcast and ParaView do.
-        ctf, otf = fv.rescaled(ctf, otf, lo, hi)
+        ctf, otf = rescaled(ctf, otf, lo, hi)
     else:
-        ctf, otf = fv.matplotlib_tf(a.cmap, lo, hi, numbers(a.opacity, name="--opacity"))
+        ctf, otf = matplotlib_tf(a.cmap, lo, hi, numbers(a.opacity, name="--opacity"))
     tf_file = out / "tf.json"
-    tf_file.write_text(json.dumps([fv.tf_to_preset(ctf, otf, name="compare_vtk")], indent=1))
+    tf_file.write_text(json.dumps([tf_to_preset(ctf, otf, name="compare_vtk")], indent=1))
 
     rows = []
     images = {}
@@ -165,11 +167,11 @@ def run(a) -> dict:
         png = out / f"fluidcast_{mode}.png"
         stats = out / f"fluidcast_{mode}.stats.json"
         t = time.perf_counter()
-        fv.run_fluidcast(*common, *extra, "--stats", stats, "-o", png, binary=binary)
+        run_fluidcast(*common, *extra, "--stats", stats, "-o", png, binary=binary)
         wall = time.perf_counter() - t
         st = json.loads(stats.read_text())
         st = st[0] if isinstance(st, list) else st
-        images[f"fluidcast {mode}"] = fv.read_png(png)
+        images[f"fluidcast {mode}"] = read_png(png)
         rows.append(dict(method=f"fluidcast {mode}", image=png.name, wall_s=wall,
                          resample_s=None, render_s=st["timings"]["total_ms"] / 1e3,
                          grid_mb=None))
@@ -180,11 +182,11 @@ def run(a) -> dict:
     # VTK's SPH interpolator + volume mapper, per grid resolution.
     null = lo - 0.01 * (hi - lo)
     for res in (int(r) for r in a.resolution.split(",")):
-        vol = fv.sph_volume(ds, values, a.kernel, H, res, null, mass, density)
-        img, render_s = fv.render_volume(vol, cam, ctf, otf, unit, size, background)
+        vol = sph_volume(ds, values, a.kernel, H, res, null, mass, density)
+        img, render_s = render_volume(vol, cam, ctf, otf, unit, size, background)
         name = f"VTK SPH {res}"
         png = out / f"vtk_sph_{res}.png"
-        fv.write_png(png, img)
+        write_png(png, img)
         images[name] = img
         dims = "x".join(map(str, vol.image.GetDimensions()))
         rows.append(dict(method=f"{name} ({dims}, spacing {vol.image.GetSpacing()[0]:.3g})",
@@ -195,17 +197,17 @@ def run(a) -> dict:
 
     # Point Gaussian splats.
     radius = a.splat_radius or H / 2
-    img, s = fv.render_splats(ds, values, cam, a.cmap if not a.tf else "viridis", (lo, hi),
+    img, s = render_splats(ds, values, cam, a.cmap if not a.tf else "viridis", (lo, hi),
                               radius, size=size, background=background)
     png = out / "splats.png"
-    fv.write_png(png, img)
+    write_png(png, img)
     images["Point Gaussian"] = img
     rows.append(dict(method=f"Point Gaussian splats (radius {radius:.3g})", image=png.name,
                      wall_s=vtk_read_s + s, resample_s=None, render_s=s, grid_mb=None))
     print(f"  Point Gaussian       {rows[-1]['wall_s']:7.2f} s wall")
 
     for r, img in zip(rows, images.values()):
-        r.update(fv.difference(img, ref))
+        r.update(difference(img, ref))
     table = dict(data=str(path), array=a.array, particles=n, support_radius=H,
                  size=[w, h], range=[lo, hi], opacity_unit_distance=unit, rows=rows)
     (out / "table.json").write_text(json.dumps(table, indent=1))
@@ -285,9 +287,9 @@ def main(argv=None):
     try:
         run(a)
     except KeyError as e:
-        raise SystemExit(f"compare_vtk: {a.data}: {e.args[0]}")
+        raise SystemExit(f"compare_vtk: {a.data}: {e.args[0]}") from None
     except (ValueError, RuntimeError, OSError, subprocess.CalledProcessError) as e:
-        raise SystemExit(f"compare_vtk: {e}")
+        raise SystemExit(f"compare_vtk: {e}") from None
 
 
 if __name__ == "__main__":

@@ -13,11 +13,9 @@ Takes a few minutes (the 384^3-class grids dominate).
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import compare_vtk  # noqa: E402
+import compare_vtk  # examples/compare_vtk.py (the script's folder is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,9 +14,11 @@ import json
 import numpy as np
 import pytest
 import pyvista as pv
-
-import fluidcast_vtk as fv
+import vtk
 from conftest import fluidcast
+from fluidcast.camera import load_camera, reset_camera, save_camera, vtk_project
+from fluidcast.data import write_particles
+from fluidcast.images import read_png
 
 SIZE = (320, 200)  # not square, so an aspect-ratio mistake shows
 
@@ -37,7 +39,7 @@ def pyvista_camera(points, azimuth, elevation, zoom, view_angle, parallel):
     pl.camera.azimuth = azimuth
     pl.camera.elevation = elevation
     pl.camera.zoom(zoom)
-    cam = fv.vtk.vtkCamera()
+    cam = vtk.vtkCamera()
     cam.DeepCopy(pl.camera)
     pl.close()
     return cam
@@ -66,8 +68,8 @@ def test_camera_round_trip_and_projection(name, tmp_path):
     cam = pyvista_camera(cloud, **CAMERAS[name])
 
     # Round trip through fluidcast's JSON and the CLI.
-    cam_json = fv.save_camera(cam, tmp_path / "cam.json")
-    px = fv.vtk_project(cam, cloud, *SIZE)
+    cam_json = save_camera(cam, tmp_path / "cam.json")
+    px = vtk_project(cam, cloud, *SIZE)
     inside = np.all((px > 12) & (px < np.array(SIZE) - 12), axis=1)
     keep = np.flatnonzero(inside)[spaced(px[inside], 20)]
     assert len(keep) >= 20, f"only {len(keep)} well separated points in view"
@@ -80,7 +82,7 @@ def test_camera_round_trip_and_projection(name, tmp_path):
     else:
         footprint = 2 * depth.min() * np.tan(np.radians(cam.GetViewAngle() / 2)) / SIZE[1]
     h = 4 * footprint
-    data = fv.write_particles(tmp_path / "blobs.vtp", pts, value=np.ones(len(pts)))
+    data = write_particles(tmp_path / "blobs.vtp", pts, value=np.ones(len(pts)))
     tf = tmp_path / "white.json"
     tf.write_text(json.dumps([{"Name": "white", "RGBPoints": [0, 1, 1, 1, 1, 1, 1, 1],
                                "Points": [0, 0.5, 0.5, 0, 1, 0.5, 0.5, 0]}]))
@@ -90,11 +92,11 @@ def test_camera_round_trip_and_projection(name, tmp_path):
               "--support-radius", h, "--uniform-volume", "--opacity-unit-distance", 2 * h,
               "--camera", cam_json, "--save-camera", saved, "--size", f"{SIZE[0]}x{SIZE[1]}",
               "--background", "0,0,0", "--mode", "reference", "-o", out)
-    back = fv.load_camera(saved)
+    back = load_camera(saved)
     np.testing.assert_allclose(matrix(back), matrix(cam), rtol=0, atol=1e-12)
 
     # Projection: intensity centroid of each blob vs VTK's projected centre.
-    img = fv.read_png(out).astype(np.float64)[:, :, 0]
+    img = read_png(out).astype(np.float64)[:, :, 0]
     want = px[keep]
     jj, ii = np.mgrid[0:SIZE[1], 0:SIZE[0]]
     errors = []
@@ -116,15 +118,15 @@ def test_camera_round_trip_and_projection(name, tmp_path):
 def test_auto_camera_is_vtk_reset_camera(tmp_path):
     rng = np.random.default_rng(3)
     cloud = rng.uniform([0.2, -0.3, 1.0], [2.2, 0.4, 1.5], (300, 3))
-    data = fv.write_particles(tmp_path / "c.vtp", cloud, value=np.ones(len(cloud)))
+    data = write_particles(tmp_path / "c.vtp", cloud, value=np.ones(len(cloud)))
     saved = tmp_path / "auto.json"
     fluidcast("render", data, "--array", "value", "--support-radius", 0.05, "--uniform-volume",
               "--azimuth", 40, "--elevation", 25, "--zoom", 1.3, "--save-camera", saved,
               "--size", f"{SIZE[0]}x{SIZE[1]}", "--mode", "reference", "-o", tmp_path / "a.png")
-    ours = fv.load_camera(saved)
+    ours = load_camera(saved)
     # fluidcast resets on the particles' bounds grown by the support radius (their extent).
     b = np.c_[cloud.min(0) - 0.05, cloud.max(0) + 0.05].ravel()
-    vtk_cam = fv.reset_camera(b, 40, 25, 1.3, SIZE)
+    vtk_cam = reset_camera(b, 40, 25, 1.3, SIZE)
     # fluidcast holds positions in single precision: agreement to 1e-6 of the scene size.
     tol = 1e-6 * np.linalg.norm(cloud.max(0) - cloud.min(0))
     for get in ("GetPosition", "GetFocalPoint", "GetViewUp"):

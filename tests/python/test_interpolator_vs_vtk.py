@@ -7,12 +7,12 @@ on (our csph) and off (our sph), at >= 1000 points inside a real frame.
 import numpy as np
 import pytest
 import vtk
+from conftest import fluidcast, shared
+from fluidcast.data import read_points
+from fluidcast.vtk_sph import VTK_KERNELS
 from vtk.util import numpy_support as ns
 
-import fluidcast_vtk as fv
-from conftest import fluidcast, shared
-
-KERNELS = fv.VTK_KERNELS  # fluidcast kernel name -> (VTK kernel class, H / h)
+KERNELS = VTK_KERNELS  # fluidcast kernel name -> (VTK kernel class, H / h)
 
 
 def vtk_interpolate(ds, probe_pts, kernel, support, shepard, array):
@@ -44,7 +44,7 @@ def vtk_interpolate(ds, probe_pts, kernel, support, shepard, array):
 @pytest.mark.parametrize("shepard", [True, False])
 def test_field_matches_vtk_sph_interpolator(kernel, shepard, tmp_path):
     path = shared("splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu")
-    ds = fv.read_points(path)
+    ds = read_points(path)
     pts = ns.vtk_to_numpy(ds.GetPoints().GetData()).astype(np.float64)
     rng = np.random.default_rng(3)
     # Probe near particles (inside the fluid), offset by up to one spacing.

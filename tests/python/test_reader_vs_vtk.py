@@ -7,18 +7,13 @@ support radius and an array evaluates the CSPH field *at the particles themselve
 returns each particle's own value exactly (only it contributes). Counts, ranges and array
 lists come from `info --json`.
 """
-import sys
-from pathlib import Path
 
+import make_fixtures  # tests/make_fixtures.py (pyproject.toml puts tests/ on pytest's path)
 import numpy as np
 import pytest
 import vtk
+from conftest import SHARED, fluidcast, info_json
 from vtk.util import numpy_support as ns
-
-from conftest import ROOT, SHARED, fluidcast, info_json
-
-sys.path.insert(0, str(ROOT / "tests"))
-import make_fixtures  # noqa: E402
 
 
 def vtk_read(path):
@@ -50,7 +45,8 @@ def compare_file(path, tmp_path):
     np.testing.assert_allclose(info["bounds"]["min"], pts.min(0), rtol=0, atol=0)
     np.testing.assert_allclose(info["bounds"]["max"], pts.max(0), rtol=0, atol=0)
     pd = ds.GetPointData()
-    vtk_arrays = {pd.GetArrayName(i): ns.vtk_to_numpy(pd.GetArray(i)) for i in range(pd.GetNumberOfArrays())}
+    vtk_arrays = {pd.GetArrayName(i): ns.vtk_to_numpy(pd.GetArray(i))
+                  for i in range(pd.GetNumberOfArrays())}
     ours = {a["name"]: a for a in info["point_data"]}
     assert set(ours) == set(vtk_arrays), (set(ours), set(vtk_arrays))
     for name, arr in vtk_arrays.items():

@@ -11,11 +11,14 @@ import json
 
 import numpy as np
 import pytest
-
-import fluidcast_vtk as fv
+import vtk
 from conftest import fluidcast
+from fluidcast.camera import save_camera, vtk_project
+from fluidcast.data import write_particles
+from fluidcast.images import read_png
+from fluidcast.transfer import preset_to_vtk, tf_to_preset
 
-VTK = fv.vtk
+VTK = vtk
 VALUES = [0.0, 0.13, 0.5, 0.77, 1.0]
 H = 0.2  # support radius; blocks are 1 apart (> 2H), so supports never overlap
 
@@ -68,7 +71,7 @@ def constant_opacity(a):
 
 def render(tmp_path, preset, values, unit, size=(500, 100)):
     pts, vals, centres = blocks(values)
-    data = fv.write_particles(tmp_path / "blocks.vtp", pts, value=vals)
+    data = write_particles(tmp_path / "blocks.vtp", pts, value=vals)
     tf = tmp_path / "tf.json"
     tf.write_text(json.dumps([preset]))
     cam = VTK.vtkCamera()
@@ -79,14 +82,14 @@ def render(tmp_path, preset, values, unit, size=(500, 100)):
     cam.SetViewUp(0, 1, 0)
     cam.ParallelProjectionOn()
     cam.SetParallelScale((hi[0] - lo[0]) / 2 * size[1] / size[0] * 1.05)
-    camfile = fv.save_camera(cam, tmp_path / "cam.json")
+    camfile = save_camera(cam, tmp_path / "cam.json")
     out = tmp_path / "blocks.png"
     fluidcast("render", data, "--array", "value", "--range", "0,1", "--tf", tf,
               "--support-radius", H, "--uniform-volume", "--opacity-unit-distance", unit,
               "--camera", camfile, "--size", f"{size[0]}x{size[1]}", "--background", "0,0,0",
               "--sampling-scale", 4, "--mode", "reference", "-o", out)
-    img = fv.read_png(out).astype(np.float64) / 255
-    px = fv.vtk_project(cam, centres, *size)
+    img = read_png(out).astype(np.float64) / 255
+    px = vtk_project(cam, centres, *size)
     return [img[int(y), int(x)] for x, y in px]
 
 
@@ -94,7 +97,7 @@ def render(tmp_path, preset, values, unit, size=(500, 100)):
                          ids=["rgb", "rgb-midpoints", "diverging"])
 def test_colour_matches_vtk(make_ctf, tmp_path):
     ctf = make_ctf()
-    preset = fv.tf_to_preset(ctf, constant_opacity(1.0))
+    preset = tf_to_preset(ctf, constant_opacity(1.0))
     got = render(tmp_path, preset, VALUES, unit=1.0)
     for v, c in zip(VALUES, got):
         want = np.array(ctf.GetColor(v))
@@ -116,7 +119,7 @@ def test_opacity_matches_vtk_slab_transmittance(tmp_path):
     white = VTK.vtkColorTransferFunction()
     white.AddRGBPoint(0, 1, 1, 1)
     white.AddRGBPoint(1, 1, 1, 1)
-    preset = fv.tf_to_preset(white, otf)
+    preset = tf_to_preset(white, otf)
     unit = 1.0
     got = render(tmp_path, preset, VALUES, unit=unit)
     thickness = 4 * 0.25 + 2 * H
@@ -129,7 +132,7 @@ def test_opacity_matches_vtk_slab_transmittance(tmp_path):
 def test_preset_round_trip_exact_for_linear_rgb():
     ctf, otf = plain_rgb(), constant_opacity(0.4)
     otf.AddPoint(0.5, 0.9)
-    c2, o2 = fv.preset_to_vtk(fv.tf_to_preset(ctf, otf))
+    c2, o2 = preset_to_vtk(tf_to_preset(ctf, otf))
     for x in np.linspace(-0.1, 1.1, 97):
         assert c2.GetColor(x) == pytest.approx(ctf.GetColor(x), abs=1e-12)
         assert o2.GetValue(x) == pytest.approx(otf.GetValue(x), abs=1e-12)

@@ -27,9 +27,12 @@ import json
 
 import numpy as np
 import pytest
-
-import fluidcast_vtk as fv
 from conftest import fluidcast, shared
+from fluidcast.camera import reset_camera, save_camera
+from fluidcast.data import point_array, read_points, support_radius, volume_arrays
+from fluidcast.images import difference, read_png
+from fluidcast.transfer import matplotlib_tf, tf_to_preset
+from fluidcast.vtk_sph import render_volume, sph_volume
 
 SIZE = (320, 240)
 CASES = {
@@ -45,32 +48,32 @@ CASES = {
 def test_reference_image_converges_to_vtk_volume_rendering(case, tmp_path):
     c = CASES[case]
     path = shared(c["file"])
-    ds = fv.read_points(path)
-    values = fv.point_array(ds, c["array"])
+    ds = read_points(path)
+    values = point_array(ds, c["array"])
     lo, hi = float(values.min()), float(values.max())
-    support = c["support"] or fv.support_radius(ds, path)
-    mass, density = fv.volume_arrays(ds)
+    support = c["support"] or support_radius(ds, path)
+    mass, density = volume_arrays(ds)
     assert mass and density
-    cam = fv.reset_camera(ds.GetBounds(), c["azimuth"], c["elevation"], 1.0, SIZE)
-    ctf, otf = fv.matplotlib_tf("viridis", lo, hi, [0.05, 0.3, 0.8])
+    cam = reset_camera(ds.GetBounds(), c["azimuth"], c["elevation"], 1.0, SIZE)
+    ctf, otf = matplotlib_tf("viridis", lo, hi, [0.05, 0.3, 0.8])
     tf = tmp_path / "tf.json"
-    tf.write_text(json.dumps([fv.tf_to_preset(ctf, otf)]))
+    tf.write_text(json.dumps([tf_to_preset(ctf, otf)]))
     out = tmp_path / "fluidcast.png"
     fluidcast("render", path, "--array", c["array"], "--tf", tf, "--range", f"{lo},{hi}",
-              "--camera", fv.save_camera(cam, tmp_path / "cam.json"),
+              "--camera", save_camera(cam, tmp_path / "cam.json"),
               "--size", f"{SIZE[0]}x{SIZE[1]}", "--opacity-unit-distance", c["unit"],
               "--support-radius", support, "--mass-array", mass, "--density-array", density,
               "--mode", "reference", "-o", out)
-    ours = fv.read_png(out)
+    ours = read_png(out)
     assert (ours != 255).any(axis=2).mean() > 0.05, "fluidcast drew almost nothing"
 
     rmse = {}
     extent = max(hi - lo for lo, hi in np.array(ds.GetBounds()).reshape(3, 2)) + 2 * support
     for spacing_in_h in (0.5, 0.25):
         resolution = int(np.ceil(extent / (spacing_in_h * support))) + 1
-        vol = fv.sph_volume(ds, values, "cubic", support, resolution,
+        vol = sph_volume(ds, values, "cubic", support, resolution,
                             null_value=lo - 0.01 * (hi - lo), mass=mass, density=density)
-        img, _ = fv.render_volume(vol, cam, ctf, otf, c["unit"], SIZE)
-        rmse[spacing_in_h] = fv.difference(img, ours)["rmse"]
+        img, _ = render_volume(vol, cam, ctf, otf, c["unit"], SIZE)
+        rmse[spacing_in_h] = difference(img, ours)["rmse"]
     assert rmse[0.25] <= 0.7 * rmse[0.5], f"no convergence: RMSE {rmse}"
     assert rmse[0.25] <= 0.015, f"RMSE {rmse}"

@@ -1,22 +1,25 @@
 """The Python-wrapped vtkFluidCastVolumeMapper in ParaView's Python (pvpython): build a VTK
 pipeline by hand, render offscreen, check the mapper drew the particles.
 
-    pvpython pvpython_mapper.py BUILD_DIR DATA.vtu
+    PYTHONPATH=BUILD_DIR/python pvpython pvpython_mapper.py DATA.vtu
 """
 import os
 import sys
 
-build, data = sys.argv[1:3]
-sys.path.insert(0, os.path.join(build, "python"))
-from fluidcast_vtk import vtkFluidCastVolumeMapper  # noqa: E402
-import vtkmodules.vtkRenderingOpenGL2  # noqa: E402,F401
-import vtkmodules.vtkRenderingVolumeOpenGL2  # noqa: E402,F401
-from vtkmodules.util.numpy_support import vtk_to_numpy  # noqa: E402
-from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction  # noqa: E402
-from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader  # noqa: E402
-from vtkmodules.vtkRenderingCore import (vtkColorTransferFunction, vtkRenderer,  # noqa: E402
-                                         vtkRenderWindow, vtkVolume, vtkVolumeProperty,
-                                         vtkWindowToImageFilter)
+from fluidcast import vtkFluidCastVolumeMapper
+from vtkmodules.util.numpy_support import vtk_to_numpy
+from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction
+from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+from vtkmodules.vtkRenderingCore import (
+    vtkColorTransferFunction,
+    vtkRenderer,
+    vtkRenderWindow,
+    vtkVolume,
+    vtkVolumeProperty,
+    vtkWindowToImageFilter,
+)
+
+data = sys.argv[1]
 
 reader = vtkXMLUnstructuredGridReader()
 reader.SetFileName(data)

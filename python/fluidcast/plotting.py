@@ -1,0 +1,287 @@
+"""fluidcast in a pyvista ``Plotter``: ``add_particles`` puts the VTK mapper into a plotter
+with pyvista's ``add_volume`` conventions, ``read`` loads particle files into pyvista.
+
+The mapper renders with the plotter's camera and window into the same image as the other
+actors: opaque meshes in front of the particles hide them, and the particles cover what lies
+behind them.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pyvista as pv
+from vtkmodules.util.misc import calldata_type
+from vtkmodules.vtkCommonCore import VTK_STRING, vtkCommand
+from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction, vtkPointSet
+from vtkmodules.vtkRenderingCore import vtkColorTransferFunction, vtkVolumeProperty
+
+from ._rendering import vtkFluidCastReader, vtkFluidCastVolumeMapper
+
+#: Backend names → the mapper's constants (``Backend`` property; ParaView's FluidCastBackend).
+BACKENDS = {
+    "auto": vtkFluidCastVolumeMapper.AUTO,
+    "cpu": vtkFluidCastVolumeMapper.CPU,
+    "gpu": vtkFluidCastVolumeMapper.GPU,
+}
+
+# vtkSmartVolumeMapper's vector modes, which the mapper follows.
+_MAGNITUDE_BY_DEFAULT = -1
+_COMPONENT = 1
+
+
+def kernels() -> list[str]:
+    """The SPH kernels the mapper knows (its ``Kernel`` property), from the mapper itself."""
+    names = []
+    while name := vtkFluidCastVolumeMapper.GetKernelName(len(names)):
+        names.append(name)
+    return names
+
+
+class _Errors:
+    """Collects the messages of a VTK object's ErrorEvents (what vtkErrorMacro reports)."""
+
+    def __init__(self, obj):
+        self.messages: list[str] = []
+        self._obj = obj
+        self._tag = obj.AddObserver(vtkCommand.ErrorEvent, self._on_error)
+
+    @calldata_type(VTK_STRING)
+    def _on_error(self, _obj, _event, message):
+        # VTK's text: "ERROR: In FILE, line N\nvtkClass (0x...): the message".
+        text = str(message).strip()
+        self.messages.append(re.sub(r"^ERROR: In .*?\n\S+ \(0x[0-9a-f]+\): ", "", text, flags=re.S))
+
+    def close(self):
+        self._obj.RemoveObserver(self._tag)
+
+
+def read(path: str | Path) -> pv.PolyData:
+    """Reads a particle file (.vtu, .vtp, legacy .vtk: one frame; of a .pvd series, read the
+    frame's file) with fluidcast's own checked reader, points and point arrays as a
+    ``pyvista.PolyData``.
+
+    Raises ``ValueError`` naming the file and the problem for a missing, damaged or lying
+    file."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such file")
+    reader = vtkFluidCastReader()
+    errors = _Errors(reader)
+    reader.SetFileName(str(path))
+    reader.Update()
+    errors.close()
+    if errors.messages:
+        raise ValueError(errors.messages[-1])
+    return pv.wrap(reader.GetOutput())
+
+
+def _point_set(particles) -> pv.DataSet:
+    if isinstance(particles, (str, Path)):
+        return read(particles)
+    if not isinstance(particles, vtkPointSet):
+        raise TypeError(
+            "fluidcast.add_particles: particles must be a file path or a point set "
+            f"(pyvista.PolyData, pyvista.UnstructuredGrid), not {type(particles).__name__}")
+    mesh = pv.wrap(particles)
+    if mesh.n_points == 0:
+        raise ValueError("fluidcast.add_particles: the particles have no points")
+    return mesh
+
+
+def _scalars(mesh: pv.DataSet, scalars) -> tuple[pv.DataSet, str]:
+    """The point array to render, by name (None: the active scalars) or as values."""
+    if scalars is None:
+        scalars = mesh.point_data.active_scalars_name
+        if scalars is None:
+            raise ValueError(
+                "fluidcast.add_particles: no scalars given and the particles have no active "
+                f"point scalars; name a point array ({_names(mesh)})")
+    if isinstance(scalars, str):
+        if scalars not in mesh.point_data:
+            where = " (it is cell data; fluidcast renders point data)" \
+                if scalars in mesh.cell_data else ""
+            raise ValueError(f"fluidcast.add_particles: the particles have no point array "
+                             f"'{scalars}'{where}; point arrays: {_names(mesh)}")
+        return mesh, scalars
+    values = np.asarray(scalars)
+    if values.shape[0] != mesh.n_points:
+        raise ValueError(f"fluidcast.add_particles: {values.shape[0]} scalars for "
+                         f"{mesh.n_points} particles")
+    mesh = mesh.copy(deep=False)
+    mesh.point_data["Data"] = values
+    return mesh, "Data"
+
+
+def _names(mesh: pv.DataSet) -> str:
+    return ", ".join(mesh.point_data.keys()) or "none"
+
+
+def _rendered_values(values: np.ndarray, component: int | None) -> np.ndarray:
+    """What the mapper renders: the values, a vector's magnitude, or one component."""
+    if values.ndim == 1:
+        if component not in (None, 0):
+            raise ValueError(f"fluidcast.add_particles: component {component} of a scalar")
+        return values
+    if component is None:
+        return np.linalg.norm(values, axis=1)
+    if not 0 <= component < values.shape[1]:
+        raise ValueError(f"fluidcast.add_particles: component {component} of an array with "
+                         f"{values.shape[1]} components")
+    return values[:, component]
+
+
+def _clim(values: np.ndarray, clim) -> tuple[float, float]:
+    if clim is None:
+        finite = values[np.isfinite(values)]
+        if finite.size == 0:
+            raise ValueError("fluidcast.add_particles: the scalars have no finite value")
+        clim = (float(finite.min()), float(finite.max()))
+    elif np.isscalar(clim):
+        clim = (-float(clim), float(clim))
+    lo, hi = map(float, clim)
+    if not lo < hi:
+        hi = lo + max(abs(lo), 1.0) * 1e-6  # a constant field: one colour, as pyvista
+    return lo, hi
+
+
+def transfer_functions(lut: pv.LookupTable, clim: tuple[float, float]):
+    """A pyvista lookup table as VTK colour and opacity functions in data units, one node
+    per table entry spread evenly over ``clim`` (pyvista's own ``to_color_tf`` is in table
+    indices, for the 0..255 data ``add_volume`` makes; the mapper reads the data itself)."""
+    table = np.asarray(lut.values, dtype=np.float64) / 255.0
+    ctf = vtkColorTransferFunction()
+    ctf.SetColorSpaceToRGB()
+    otf = vtkPiecewiseFunction()
+    for x, (r, g, b, a) in zip(np.linspace(clim[0], clim[1], len(table)), table):
+        ctf.AddRGBPoint(x, r, g, b)
+        otf.AddPoint(x, a)
+    return ctf, otf
+
+
+def _lookup_table(plotter, cmap, n_colors, flip_scalars, opacity, clim) -> pv.LookupTable:
+    if isinstance(cmap, pv.LookupTable):
+        lut = cmap
+    else:
+        lut = pv.LookupTable(cmap=cmap or plotter.theme.cmap, n_values=n_colors,
+                             flip=flip_scalars)
+        lut.apply_opacity(opacity)
+    lut.scalar_range = clim
+    return lut
+
+
+def _configure(mapper, mesh, name, values, component, support_radius, radius_array,
+               radius_scale, kernel, error_tolerance, backend, adapter):
+    mapper.SetInputData(mesh)
+    mapper.SetScalarModeToUsePointFieldData()
+    mapper.SelectScalarArray(name)
+    if values.ndim > 1 and component is not None:
+        mapper.SetVectorMode(_COMPONENT)
+        mapper.SetVectorComponent(component)
+    else:
+        mapper.SetVectorMode(_MAGNITUDE_BY_DEFAULT)
+    if kernel not in kernels():
+        raise ValueError(f"fluidcast.add_particles: unknown kernel '{kernel}' "
+                         f"(one of {', '.join(kernels())})")
+    mapper.SetKernel(kernel)
+    if support_radius is not None:
+        if not (np.isfinite(support_radius) and support_radius > 0):
+            raise ValueError(f"fluidcast.add_particles: support_radius must be a positive "
+                             f"length, not {support_radius}")
+        mapper.SetSupportRadius(support_radius)
+    if radius_array is not None:
+        mapper.SetRadiusArray(radius_array)
+    mapper.SetRadiusScale(radius_scale)
+    mapper.SetErrorTolerance(error_tolerance)
+    if backend not in BACKENDS:
+        raise ValueError(f"fluidcast.add_particles: unknown backend '{backend}' "
+                         f"(one of {', '.join(BACKENDS)})")
+    mapper.SetBackend(BACKENDS[backend])
+    if adapter is not None:
+        mapper.SetAdapter(adapter)
+
+
+def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: int | None = None,
+                  clim=None, cmap=None, opacity="linear", n_colors: int = 256,
+                  flip_scalars: bool = False, opacity_unit_distance: float | None = None,
+                  support_radius: float | None = None, radius_array: str | None = None,
+                  radius_scale: float = 1.0, kernel: str = "cubic",
+                  error_tolerance: float = 0.004, backend: str = "auto",
+                  adapter: str | None = None, show_scalar_bar: bool | None = None,
+                  scalar_bar_args: dict | None = None, name: str | None = None,
+                  reset_camera: bool | None = None, render: bool = True) -> pv.Volume:
+    """Adds SPH particles to ``plotter`` as a volume rendered by fluidcast, and returns the
+    ``pyvista.Volume`` (its ``mapper`` is the ``vtkFluidCastVolumeMapper``: every property,
+    e.g. ``SetKernel``, ``SetRadiusArray``, ``SetBackendToGPU``, stays reachable).
+
+    The arguments follow ``pyvista.Plotter.add_volume``:
+
+    * ``particles``: a ``pyvista.PolyData``/``UnstructuredGrid`` (any ``vtkPointSet``) whose
+      points are the particles, or a file path (read with :func:`read`).
+    * ``scalars``: a point array's name (default: the active scalars) or one value per
+      particle. A vector renders its magnitude, or ``component``.
+    * ``clim`` (default: the rendered values' range), ``cmap`` (a matplotlib colour-map name
+      or a ``pyvista.LookupTable``; default: the plotter theme's), ``opacity`` (a pyvista
+      opacity: "linear", "sigmoid", "geom", ... with "_r" to reverse, a float, or values spread
+      over ``clim``), ``n_colors``, ``flip_scalars``, ``show_scalar_bar``,
+      ``scalar_bar_args``, ``name``, ``reset_camera``, ``render``.
+    * ``opacity_unit_distance`` (world units over which the opacity applies, ParaView's Scalar
+      Opacity Unit Distance; default as the CLI: bounds diagonal / cbrt(particles)).
+
+    fluidcast's own settings (the mapper's properties):
+
+    * ``support_radius`` H (world units; the kernel vanishes beyond it) for every particle,
+      or ``radius_array`` (per-particle H = ``radius_scale`` × the array); default: the
+      data's "support_radius" field data, else twice the mean particle spacing.
+    * ``kernel``: one of :func:`kernels` ("cubic", "wendland-c2", ...).
+    * ``error_tolerance``: the screen-space error E_I the adaptive renderer keeps below
+      (0 renders at full rate).
+    * ``backend`` "auto" (a hardware GPU if there is one, else the CPU), "cpu" or "gpu";
+      ``adapter``: a GPU adapter's name (part of it).
+
+    Bad input (no points, a missing array, NaN radii, ...) raises ``ValueError`` with the
+    mapper's message and adds nothing; the mapper reports later problems (data changed to
+    something it cannot render) as VTK errors and draws nothing.
+    """
+    mesh = _point_set(particles)
+    mesh, name_ = _scalars(mesh, scalars)
+    values = np.asarray(mesh.point_data[name_])
+    clim = _clim(_rendered_values(values, component), clim)
+    lut = _lookup_table(plotter, cmap, n_colors, flip_scalars, opacity, clim)
+
+    mapper = vtkFluidCastVolumeMapper()
+    _configure(mapper, mesh, name_, values, component, support_radius, radius_array,
+               radius_scale, kernel, error_tolerance, backend, adapter)
+    errors = _Errors(mapper)  # keeps the mapper's message off the console: it is raised
+    ok = mapper.UpdateParticles()
+    errors.close()
+    if not ok:
+        raise ValueError(f"fluidcast.add_particles: {mapper.GetLastError()}")
+
+    prop = vtkVolumeProperty()
+    ctf, otf = transfer_functions(lut, clim)
+    prop.SetColor(ctf)
+    prop.SetScalarOpacity(otf)
+    if opacity_unit_distance is None:
+        opacity_unit_distance = mesh.length / np.cbrt(mesh.n_points)
+    prop.SetScalarOpacityUnitDistance(opacity_unit_distance)
+    prop.SetInterpolationTypeToLinear()
+    prop.ShadeOff()
+
+    volume = pv.Volume()
+    volume.mapper = mapper
+    volume.prop = prop
+    plotter.add_actor(volume, reset_camera=reset_camera, name=name, render=False)
+    if show_scalar_bar is None:
+        show_scalar_bar = plotter.theme.show_scalar_bar
+    if show_scalar_bar:
+        bar = pv.DataSetMapper(theme=plotter.theme)
+        bar.lookup_table = lut
+        bar.scalar_range = clim
+        args = dict(scalar_bar_args or {})
+        args.setdefault("title", name_)
+        plotter.add_scalar_bar(mapper=bar, **args)
+    if render:
+        plotter.render()
+    return volume
