@@ -14,7 +14,8 @@ from vtk.util import numpy_support as ns
 
 rng = np.random.default_rng(42)
 dx = 0.02
-g = np.stack(np.meshgrid(np.arange(15), np.arange(20), np.arange(20), indexing="ij"), -1).reshape(-1, 3)
+g = np.stack(np.meshgrid(np.arange(15), np.arange(20), np.arange(20), indexing="ij"), -1)
+g = g.reshape(-1, 3)
 pts = (g * dx + rng.normal(scale=0.002, size=g.shape)).astype(np.float32)
 pts[:, 1] *= 1.5  # taller column
 c = pts.mean(axis=0)
@@ -28,7 +29,8 @@ poly = vtk.vtkPolyData()
 p = vtk.vtkPoints()
 p.SetData(ns.numpy_to_vtk(pts, deep=True))
 poly.SetPoints(p)
-for name, arr in (("velocity", vel.astype(np.float32)), ("density", rho.astype(np.float32)), ("mass", mass)):
+for name, arr in (("velocity", vel.astype(np.float32)), ("density", rho.astype(np.float32)),
+                  ("mass", mass)):
     a = ns.numpy_to_vtk(arr, deep=True)
     a.SetName(name)
     poly.GetPointData().AddArray(a)

@@ -98,7 +98,8 @@ def write_xml(data, path, mode, compressor="none", header=64, block_size=None):
 
 
 def write_legacy(data, path, binary, version):
-    w = vtk.vtkPolyDataWriter() if isinstance(data, vtk.vtkPolyData) else vtk.vtkUnstructuredGridWriter()
+    poly = isinstance(data, vtk.vtkPolyData)
+    w = vtk.vtkPolyDataWriter() if poly else vtk.vtkUnstructuredGridWriter()
     w.SetFileName(path)
     w.SetInputData(data)
     if binary:
@@ -134,8 +135,9 @@ def write_v01_separate_base64(pts, path):
         c = enc(arr)
         chunks.append(c)
         pos += len(c)
-    da = lambda name, t, nc: (f'<DataArray type="{t}" Name="{name}" NumberOfComponents="{nc}" '
-                              f'format="appended" offset="{offsets[name]}"/>')
+    def da(name, t, nc):
+        return (f'<DataArray type="{t}" Name="{name}" NumberOfComponents="{nc}" '
+                f'format="appended" offset="{offsets[name]}"/>')
     xml = f"""<?xml version="1.0"?>
 <VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">
 <UnstructuredGrid>
@@ -184,7 +186,8 @@ def write_all(out, committed):
     # so VTK writes a last-block size of 0 (8192 Float32 xyz = 98304 bytes = 3 blocks).
     big = make_polydata(lattice(32, 16, 16), with_verts=False, arrays=False)
     add_array(big.GetPointData(), "z", lattice(32, 16, 16)[:, 2].copy())
-    write_xml(to_ugrid(big), os.path.join(out, "fault_zlib_full_last_block.vtu"), "appended-raw", "zlib")
+    write_xml(to_ugrid(big), os.path.join(out, "fault_zlib_full_last_block.vtu"), "appended-raw",
+              "zlib")
     # vtkio fault: multi-block lzma arrays above ~30 KB.
     write_xml(to_ugrid(big), os.path.join(out, "fault_lzma_multiblock.vtu"), "appended-raw", "lzma")
     # vtkio fault: compressed .vtp with empty Lines/Strips/Polys (zero compressed blocks).
@@ -196,7 +199,8 @@ def write_all(out, committed):
     # A .pvd collection over two of them.
     with open(os.path.join(out, "series.pvd"), "w") as f:
         f.write('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
-                '<DataSet timestep="0.5" group="" part="0" file="lattice_appended-raw_zlib_h64.vtu"/>\n'
+                '<DataSet timestep="0.5" group="" part="0" '
+                'file="lattice_appended-raw_zlib_h64.vtu"/>\n'
                 '<DataSet timestep="0" group="" part="0" file="lattice_ascii_none_h64.vtu"/>\n'
                 '</Collection>\n</VTKFile>\n')
     written.append("series.pvd")

@@ -6,8 +6,16 @@ and exits the GUI with 0 or 1; the ctest checks the file, so a script that never
 import os
 import sys
 
-from paraview.simple import (ColorBy, GetActiveView, GetOpacityTransferFunction, LoadPlugin,
-                             OpenDataFile, Render, SaveScreenshot, Show)
+from paraview.simple import (
+    ColorBy,
+    GetActiveView,
+    GetOpacityTransferFunction,
+    LoadPlugin,
+    OpenDataFile,
+    Render,
+    SaveScreenshot,
+    Show,
+)
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 

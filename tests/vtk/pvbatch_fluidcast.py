@@ -16,11 +16,20 @@ import os
 import subprocess
 import sys
 
-from paraview.simple import (ColorBy, GetActiveCamera, GetColorTransferFunction,
-                             GetOpacityTransferFunction, LoadPlugin, OpenDataFile, Render,
-                             SaveScreenshot, Show, CreateView)
-from vtkmodules.vtkIOImage import vtkPNGReader
+from paraview.simple import (
+    ColorBy,
+    CreateView,
+    GetActiveCamera,
+    GetColorTransferFunction,
+    GetOpacityTransferFunction,
+    LoadPlugin,
+    OpenDataFile,
+    Render,
+    SaveScreenshot,
+    Show,
+)
 from vtkmodules.util.numpy_support import vtk_to_numpy
+from vtkmodules.vtkIOImage import vtkPNGReader
 
 plugin, data, array, out, cli, tolerance = sys.argv[1:7]
 backend = sys.argv[7] if len(sys.argv) > 7 else "Auto"

@@ -15,9 +15,9 @@ the process, so reaching the end is the test. Cases that fluidcast refuses must 
 error (vtkFluidCastVolumeMapper's message), counted through VTK's output window.
 Exit code 0 pass, 1 fail.
 """
+import base64
 import faulthandler
 import os
-import base64
 import struct
 import sys
 import zlib
@@ -25,13 +25,23 @@ import zlib
 faulthandler.enable(file=sys.__stderr__)
 
 import numpy as np
-from paraview.simple import (ColorBy, CreateView, Delete, GetOpacityTransferFunction,
-                             LoadPlugin, OpenDataFile, PVTrivialProducer, Render,
-                             SaveScreenshot, Show, Hide, servermanager)
+from paraview.simple import (
+    ColorBy,
+    CreateView,
+    Delete,
+    GetOpacityTransferFunction,
+    Hide,
+    LoadPlugin,
+    OpenDataFile,
+    PVTrivialProducer,
+    Render,
+    SaveScreenshot,
+    Show,
+    servermanager,
+)
 from vtkmodules.util.numpy_support import numpy_to_vtk
-from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkPoints, vtkStringOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkPolyData
-from vtkmodules.vtkCommonCore import vtkPoints
 
 plugin, out = sys.argv[1:3]
 os.makedirs(out, exist_ok=True)
