@@ -2,7 +2,8 @@
 # Runs every test: the Rust workspace, then the Python tests that hold fluidcast against
 # VTK itself (reader, vtkSPHInterpolator, camera, transfer function, VTK's volume rendering
 # of the resampled field), then builds the VTK mapper and ParaView plugin and runs their
-# ctest tests. Installs missing system packages and sets up .venv/ first (idempotent).
+# ctest tests, then installs the Python package with the mapper into .venv-paraview and runs
+# its pyvista tests. Installs missing system packages and sets up .venv/ first (idempotent).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
@@ -17,7 +18,11 @@ bash scripts/setup_python.sh
 cargo build --bin fluidcast
 # setup_system.sh installed lavapipe, so the GPU tests must find an adapter, not skip.
 FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
+.venv/bin/ruff check python tests examples
 .venv/bin/python -m pytest -q tests/python
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh
 ctest --test-dir build --output-on-failure
+# The package `fluidcast` (mapper + pyvista helper) in a pyvista Plotter, on ParaView's VTK.
+bash scripts/setup_pyvista.sh
+tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista
