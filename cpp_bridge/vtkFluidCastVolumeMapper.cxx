@@ -25,6 +25,8 @@
 #include "rust/cxx.h"
 #include "fluidcast-cxx/src/lib.rs.h"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -40,6 +42,8 @@ struct vtkFluidCastVolumeMapper::Internals
   vtkPointSet* UploadedInput = nullptr;
   bool UploadOk = false;
   std::string UploadError;
+  /** Wall-clock seconds per ray of the last frame, all its work included. */
+  double SecondsPerRay = 0.0;
 };
 
 // vtkErrorMacro that also keeps the message for GetLastError (scripts read it there).
@@ -86,6 +90,134 @@ void PassArray(fluidcast::Renderer& r, const std::string& name, vtkDataArray* a)
 }
 
 const char* const kVolumeArrays[] = { "mass", "m", "density", "rho", "volume", "V" };
+
+/** A vtkCamera as fluidcast's camera description. */
+fluidcast::CameraDesc Describe(vtkCamera* cam)
+{
+  fluidcast::CameraDesc cd;
+  const double* p = cam->GetPosition();
+  const double* f = cam->GetFocalPoint();
+  const double* u = cam->GetViewUp();
+  for (int k = 0; k < 3; ++k)
+  {
+    cd.position[k] = p[k];
+    cd.focal_point[k] = f[k];
+    cd.view_up[k] = u[k];
+  }
+  cd.view_angle = cam->GetViewAngle();
+  cd.parallel_projection = cam->GetParallelProjection() != 0;
+  cd.parallel_scale = cam->GetParallelScale();
+  return cd;
+}
+
+/** The volume property's colour and opacity tables over the colour function's range, as
+ * VTK's own volume mappers sample them, and its opacity unit distance. */
+void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
+{
+  const int n = 1024;
+  std::vector<double> rgb(3 * n), opacity(n);
+  double range[2] = { 0, 1 };
+  if (prop->GetColorChannels(0) == 1)
+  {
+    vtkPiecewiseFunction* gray = prop->GetGrayTransferFunction(0);
+    gray->GetRange(range);
+    std::vector<double> g(n);
+    gray->GetTable(range[0], range[1], n, g.data());
+    for (int i = 0; i < n; ++i)
+    {
+      rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = g[i];
+    }
+  }
+  else
+  {
+    vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
+    ctf->GetRange(range);
+    ctf->GetTable(range[0], range[1], n, rgb.data());
+  }
+  prop->GetScalarOpacity(0)->GetTable(range[0], range[1], n, opacity.data());
+  r.set_transfer_function(range[0], range[1], rust::Slice<const double>(rgb.data(), rgb.size()),
+    rust::Slice<const double>(opacity.data(), opacity.size()),
+    prop->GetScalarOpacityUnitDistance(0));
+}
+
+/** Per-pixel values of a w × h image (rows top first) at the centres of the sw × sh pixels
+ * that cover the same window (nearest pixel); `full` itself when the sizes agree or it is
+ * empty. */
+std::vector<float> Subsample(std::vector<float> full, int w, int h, int sw, int sh)
+{
+  if (full.empty() || (sw == w && sh == h))
+  {
+    return full;
+  }
+  std::vector<float> out(static_cast<size_t>(sw) * sh);
+  for (int j = 0; j < sh; ++j)
+  {
+    const int fj = std::min(h - 1, static_cast<int>((j + 0.5) * h / sh));
+    for (int i = 0; i < sw; ++i)
+    {
+      const int fi = std::min(w - 1, static_cast<int>((i + 0.5) * w / sw));
+      out[static_cast<size_t>(j) * sw + i] = full[static_cast<size_t>(fj) * w + fi];
+    }
+  }
+  return out;
+}
+
+/** A premultiplied RGBA image of sw × sh pixels (rows top first) interpolated bilinearly onto
+ * the w × h pixels of the same window. */
+std::vector<float> Upsample(std::vector<float> small, int sw, int sh, int w, int h)
+{
+  if (sw == w && sh == h)
+  {
+    return small;
+  }
+  // Source coordinate of a target pixel centre, clamped to the source's pixel centres.
+  auto at = [](int t, int n, int sn, int& a, int& b, float& f) {
+    const double x = std::clamp((t + 0.5) * sn / n - 0.5, 0.0, sn - 1.0);
+    a = static_cast<int>(x);
+    b = std::min(a + 1, sn - 1);
+    f = static_cast<float>(x - a);
+  };
+  std::vector<float> out(static_cast<size_t>(4) * w * h);
+  for (int j = 0; j < h; ++j)
+  {
+    int j0, j1;
+    float fy;
+    at(j, h, sh, j0, j1, fy);
+    for (int i = 0; i < w; ++i)
+    {
+      int i0, i1;
+      float fx;
+      at(i, w, sw, i0, i1, fx);
+      for (int c = 0; c < 4; ++c)
+      {
+        auto px = [&](int x, int y) { return small[4 * (static_cast<size_t>(y) * sw + x) + c]; };
+        const float top = px(i0, j0) + fx * (px(i1, j0) - px(i0, j0));
+        const float bottom = px(i0, j1) + fx * (px(i1, j1) - px(i0, j1));
+        out[4 * (static_cast<size_t>(j) * w + i) + c] = top + fy * (bottom - top);
+      }
+    }
+  }
+  return out;
+}
+
+/** Composites a premultiplied RGBA image (rows top first) over the framebuffer's viewport. */
+void Composite(vtkOpenGLRenderWindow* win, const std::vector<float>& rgba, int w, int h, int x0,
+  int y0)
+{
+  // VTK rows start at the bottom.
+  std::vector<float> flipped(rgba.size());
+  for (int j = 0; j < h; ++j)
+  {
+    std::copy(rgba.begin() + static_cast<size_t>(4) * j * w,
+      rgba.begin() + static_cast<size_t>(4) * (j + 1) * w,
+      flipped.begin() + static_cast<size_t>(4) * (h - 1 - j) * w);
+  }
+  vtkOpenGLState* state = win->GetState();
+  vtkOpenGLState::ScopedglBlendFuncSeparate blendFunc(state);
+  vtkOpenGLState::ScopedglEnableDisable blend(state, GL_BLEND);
+  state->vtkglBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+  win->SetRGBAPixelData(x0, y0, x0 + w - 1, y0 + h - 1, flipped.data(), 0, 1);
+}
 } // namespace
 
 //------------------------------------------------------------------------------
@@ -335,126 +467,50 @@ int vtkFluidCastVolumeMapper::UpdateParticles()
 //------------------------------------------------------------------------------
 void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 {
+  const auto start = std::chrono::steady_clock::now();
   vtkPointSet* input = this->UpdatedInput();
   if (!input || !this->Upload(input))
   {
     return;
   }
-  fluidcast::Renderer& r = *this->Impl->Renderer;
-
   vtkCamera* cam = ren->GetActiveCamera();
   if (cam->GetUseHorizontalViewAngle() || cam->GetUseOffAxisProjection())
   {
     FLUIDCAST_FAIL("cameras with a horizontal view angle or off-axis projection are not "
-                     "supported");
+                   "supported");
     return;
   }
-  vtkMatrix4x4* volMatrix = vol->GetMatrix();
-  if (!volMatrix->IsIdentity())
+  if (!vol->GetMatrix()->IsIdentity())
   {
     vtkWarningMacro(<< "the vtkVolume's position/orientation/scale is ignored: particles are "
                        "rendered in world coordinates");
   }
-  fluidcast::CameraDesc cd;
-  const double* p = cam->GetPosition();
-  const double* f = cam->GetFocalPoint();
-  const double* u = cam->GetViewUp();
-  for (int k = 0; k < 3; ++k)
+  vtkOpenGLRenderWindow* win = vtkOpenGLRenderWindow::SafeDownCast(ren->GetRenderWindow());
+  if (!win)
   {
-    cd.position[k] = p[k];
-    cd.focal_point[k] = f[k];
-    cd.view_up[k] = u[k];
+    FLUIDCAST_FAIL("needs an OpenGL render window");
+    return;
   }
-  cd.view_angle = cam->GetViewAngle();
-  cd.parallel_projection = cam->GetParallelProjection() != 0;
-  cd.parallel_scale = cam->GetParallelScale();
-
-  // Transfer function: the volume property's colour and opacity tables over the colour
-  // function's range, as VTK's own volume mappers sample them.
-  vtkVolumeProperty* prop = vol->GetProperty();
-  const int n = 1024;
-  std::vector<double> rgb(3 * n), opacity(n);
-  double range[2] = { 0, 1 };
-  if (prop->GetColorChannels(0) == 1)
-  {
-    vtkPiecewiseFunction* gray = prop->GetGrayTransferFunction(0);
-    gray->GetRange(range);
-    std::vector<double> g(n);
-    gray->GetTable(range[0], range[1], n, g.data());
-    for (int i = 0; i < n; ++i)
-    {
-      rgb[3 * i] = rgb[3 * i + 1] = rgb[3 * i + 2] = g[i];
-    }
-  }
-  else
-  {
-    vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
-    ctf->GetRange(range);
-    ctf->GetTable(range[0], range[1], n, rgb.data());
-  }
-  prop->GetScalarOpacity(0)->GetTable(range[0], range[1], n, opacity.data());
-
   int w = 0, h = 0, x0 = 0, y0 = 0;
   ren->GetTiledSizeAndOrigin(&w, &h, &x0, &y0);
   if (w <= 0 || h <= 0)
   {
     return;
   }
-
-  // Opaque geometry drawn so far: window depth -> view depth along the camera's axis, our
-  // rows top first.
-  vtkRenderWindow* win = ren->GetRenderWindow();
-  std::vector<float> zbuf(static_cast<size_t>(w) * h);
-  std::vector<float> limit;
-  if (win->GetZbufferData(x0, y0, x0 + w - 1, y0 + h - 1, zbuf.data()) == VTK_OK)
-  {
-    vtkNew<vtkMatrix4x4> inv;
-    inv->DeepCopy(cam->GetCompositeProjectionTransformMatrix(ren->GetTiledAspectRatio(), -1, 1));
-    inv->Invert();
-    double fwd[3] = { f[0] - p[0], f[1] - p[1], f[2] - p[2] };
-    vtkMath::Normalize(fwd);
-    bool any = false;
-    limit.assign(zbuf.size(), std::numeric_limits<float>::infinity());
-    for (int jv = 0; jv < h; ++jv)
-    {
-      for (int i = 0; i < w; ++i)
-      {
-        const float zb = zbuf[static_cast<size_t>(jv) * w + i];
-        if (!(zb < 1.0f))
-        {
-          continue;
-        }
-        double ndc[4] = { 2.0 * (i + 0.5) / w - 1.0, 2.0 * (jv + 0.5) / h - 1.0, 2.0 * zb - 1.0,
-          1.0 };
-        double world[4];
-        inv->MultiplyPoint(ndc, world);
-        double d = 0;
-        for (int k = 0; k < 3; ++k)
-        {
-          d += (world[k] / world[3] - p[k]) * fwd[k];
-        }
-        limit[static_cast<size_t>(h - 1 - jv) * w + i] = static_cast<float>(std::max(d, 0.0));
-        any = true;
-      }
-    }
-    if (!any)
-    {
-      limit.clear();
-    }
-  }
-
-  std::vector<float> rgba(static_cast<size_t>(4) * w * h), depth(static_cast<size_t>(w) * h);
+  // One ray per s × s pixels (s = 1 on still renders), then interpolated to the viewport.
+  const int s = this->ChooseImageSampleDistance(vol, w, h);
+  const int sw = (w + s - 1) / s, sh = (h + s - 1) / s;
+  std::vector<float> limit = Subsample(this->DepthLimits(ren, w, h, x0, y0), w, h, sw, sh);
+  std::vector<float> rgba(static_cast<size_t>(4) * sw * sh), depth(static_cast<size_t>(sw) * sh);
   try
   {
-    r.set_camera(cd);
-    r.set_transfer_function(range[0], range[1], rust::Slice<const double>(rgb.data(), rgb.size()),
-      rust::Slice<const double>(opacity.data(), opacity.size()),
-      prop->GetScalarOpacityUnitDistance(0));
-    fluidcast::RenderInfo info = r.render(static_cast<uint32_t>(w), static_cast<uint32_t>(h),
+    fluidcast::Renderer& r = *this->Impl->Renderer;
+    r.set_camera(Describe(cam));
+    SetTransferFunction(r, vol->GetProperty());
+    fluidcast::RenderInfo info = r.render(static_cast<uint32_t>(sw), static_cast<uint32_t>(sh),
       rust::Slice<const float>(limit.data(), limit.size()),
       rust::Slice<float>(rgba.data(), rgba.size()), rust::Slice<float>(depth.data(), depth.size()));
     this->LastSamples = static_cast<vtkIdType>(info.samples);
-    this->LastRenderMilliseconds = info.total_ms;
     std::string device(info.device);
     if (device != this->LastDevice)
     {
@@ -468,26 +524,91 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     FLUIDCAST_FAIL(e.what());
     return;
   }
+  Composite(win, Upsample(rgba, sw, sh, w, h), w, h, x0, y0);
+  const std::chrono::duration<double> took = std::chrono::steady_clock::now() - start;
+  this->LastRenderMilliseconds = 1e3 * took.count();
+  this->LastImageSampleDistance = s;
+  this->Impl->SecondsPerRay = took.count() / (static_cast<double>(sw) * sh);
+}
 
-  // Composite the premultiplied image over the framebuffer (VTK rows start at the bottom).
-  std::vector<float> flipped(rgba.size());
-  for (int j = 0; j < h; ++j)
+//------------------------------------------------------------------------------
+int vtkFluidCastVolumeMapper::ChooseImageSampleDistance(vtkVolume* vol, int w, int h)
+{
+  const int lo = this->MinimumImageSampleDistance;
+  const int hi = std::max(lo, this->MaximumImageSampleDistance);
+  if (!this->AutoAdjustSampleDistances)
   {
-    std::copy(rgba.begin() + static_cast<size_t>(4) * j * w,
-      rgba.begin() + static_cast<size_t>(4) * (j + 1) * w,
-      flipped.begin() + static_cast<size_t>(4) * (h - 1 - j) * w);
+    return this->ImageSampleDistance;
   }
-  vtkOpenGLRenderWindow* glwin = vtkOpenGLRenderWindow::SafeDownCast(win);
-  if (!glwin)
+  // Seconds the renderer gives this volume: 1 / the window's desired update rate (shared
+  // among the props), e.g. 10000 s for VTK's still renders, 0.2 s in ParaView's
+  // interactive renders, 1/15 s while a VTK interactor moves the camera.
+  const double budget = vol->GetAllocatedRenderTime();
+  const double perRay = this->Impl->SecondsPerRay;
+  if (!(budget > 0) || !(perRay > 0))
   {
-    FLUIDCAST_FAIL("needs an OpenGL render window");
-    return;
+    return lo; // nothing measured yet: the first frame learns the cost at full quality
   }
-  vtkOpenGLState* state = glwin->GetState();
-  vtkOpenGLState::ScopedglBlendFuncSeparate blendFunc(state);
-  vtkOpenGLState::ScopedglEnableDisable blend(state, GL_BLEND);
-  state->vtkglBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-  glwin->SetRGBAPixelData(x0, y0, x0 + w - 1, y0 + h - 1, flipped.data(), 0, 1);
+  for (int s = lo; s < hi; ++s)
+  {
+    const double rays = static_cast<double>((w + s - 1) / s) * ((h + s - 1) / s);
+    if (rays * perRay <= budget)
+    {
+      return s;
+    }
+  }
+  return hi;
+}
+
+//------------------------------------------------------------------------------
+std::vector<float> vtkFluidCastVolumeMapper::DepthLimits(
+  vtkRenderer* ren, int w, int h, int x0, int y0)
+{
+  // Opaque geometry drawn so far: window depth -> view depth along the camera's axis, our
+  // rows top first; empty when nothing opaque is drawn (or the depth cannot be read).
+  std::vector<float> zbuf(static_cast<size_t>(w) * h);
+  if (ren->GetRenderWindow()->GetZbufferData(x0, y0, x0 + w - 1, y0 + h - 1, zbuf.data()) !=
+    VTK_OK)
+  {
+    return {};
+  }
+  vtkCamera* cam = ren->GetActiveCamera();
+  vtkNew<vtkMatrix4x4> inv;
+  inv->DeepCopy(cam->GetCompositeProjectionTransformMatrix(ren->GetTiledAspectRatio(), -1, 1));
+  inv->Invert();
+  const double* p = cam->GetPosition();
+  const double* f = cam->GetFocalPoint();
+  double fwd[3] = { f[0] - p[0], f[1] - p[1], f[2] - p[2] };
+  vtkMath::Normalize(fwd);
+  bool any = false;
+  std::vector<float> limit(zbuf.size(), std::numeric_limits<float>::infinity());
+  for (int jv = 0; jv < h; ++jv)
+  {
+    for (int i = 0; i < w; ++i)
+    {
+      const float zb = zbuf[static_cast<size_t>(jv) * w + i];
+      if (!(zb < 1.0f))
+      {
+        continue;
+      }
+      double ndc[4] = { 2.0 * (i + 0.5) / w - 1.0, 2.0 * (jv + 0.5) / h - 1.0, 2.0 * zb - 1.0,
+        1.0 };
+      double world[4];
+      inv->MultiplyPoint(ndc, world);
+      double d = 0;
+      for (int k = 0; k < 3; ++k)
+      {
+        d += (world[k] / world[3] - p[k]) * fwd[k];
+      }
+      limit[static_cast<size_t>(h - 1 - jv) * w + i] = static_cast<float>(std::max(d, 0.0));
+      any = true;
+    }
+  }
+  if (!any)
+  {
+    limit.clear();
+  }
+  return limit;
 }
 
 //------------------------------------------------------------------------------
@@ -508,5 +629,10 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastMaxRadius: " << this->LastMaxRadius << "\n";
   os << indent << "LastSamples: " << this->LastSamples << "\n";
   os << indent << "LastRenderMilliseconds: " << this->LastRenderMilliseconds << "\n";
+  os << indent << "AutoAdjustSampleDistances: " << this->AutoAdjustSampleDistances << "\n";
+  os << indent << "ImageSampleDistance: " << this->ImageSampleDistance << "\n";
+  os << indent << "MinimumImageSampleDistance: " << this->MinimumImageSampleDistance << "\n";
+  os << indent << "MaximumImageSampleDistance: " << this->MaximumImageSampleDistance << "\n";
+  os << indent << "LastImageSampleDistance: " << this->LastImageSampleDistance << "\n";
   os << indent << "LastError: " << (this->LastError.empty() ? "(none)" : this->LastError) << "\n";
 }

@@ -39,6 +39,7 @@
 
 #include <memory> // for std::unique_ptr
 #include <string> // for std::string
+#include <vector> // for std::vector
 
 class vtkPointSet;
 class vtkRenderer;
@@ -145,8 +146,33 @@ public:
 
   ///@{
   /**
+   * Interactive rendering, as VTK's ray cast mappers do it (vtkFixedPointVolumeRayCastMapper's
+   * names). With AutoAdjustSampleDistances on (the default) each frame fits the time the
+   * renderer allocates to the volume (vtkProp::GetAllocatedRenderTime: 1 / the render window's
+   * DesiredUpdateRate, which VTK's interactors and ParaView's interactive renders raise while
+   * the camera moves): it casts one ray per ImageSampleDistance × ImageSampleDistance pixels,
+   * the smallest distance in [MinimumImageSampleDistance, MaximumImageSampleDistance] whose
+   * predicted time (from the last frame's time per ray) fits, and interpolates the image
+   * bilinearly. Still renders (allocated seconds to minutes) get full resolution. Off: every
+   * frame uses ImageSampleDistance. Distances are whole pixels.
+   */
+  vtkSetMacro(AutoAdjustSampleDistances, vtkTypeBool);
+  vtkGetMacro(AutoAdjustSampleDistances, vtkTypeBool);
+  vtkBooleanMacro(AutoAdjustSampleDistances, vtkTypeBool);
+  vtkSetClampMacro(ImageSampleDistance, int, 1, 64);
+  vtkGetMacro(ImageSampleDistance, int);
+  vtkSetClampMacro(MinimumImageSampleDistance, int, 1, 64);
+  vtkGetMacro(MinimumImageSampleDistance, int);
+  vtkSetClampMacro(MaximumImageSampleDistance, int, 1, 64);
+  vtkGetMacro(MaximumImageSampleDistance, int);
+  /** The distance the last frame used (1: every pixel cast). */
+  vtkGetMacro(LastImageSampleDistance, int);
+  ///@}
+
+  ///@{
+  /**
    * After a render: particles used, the largest support radius (world units), depth samples
-   * composited and the time fluidcast took (milliseconds).
+   * composited and the frame's wall-clock time in this mapper (milliseconds).
    */
   vtkGetMacro(LastParticleCount, vtkIdType);
   vtkGetMacro(LastMaxRadius, double);
@@ -194,6 +220,11 @@ protected:
   char* Adapter = nullptr;
   int VectorMode = -1;
   int VectorComponent = 0;
+  vtkTypeBool AutoAdjustSampleDistances = 1;
+  int ImageSampleDistance = 1;
+  int MinimumImageSampleDistance = 1;
+  int MaximumImageSampleDistance = 8;
+  int LastImageSampleDistance = 1;
 
   vtkIdType LastParticleCount = 0;
   double LastMaxRadius = 0.0;
@@ -212,6 +243,11 @@ private:
    * outcome, its error message included). */
   bool Upload(vtkPointSet* input);
   bool UploadNow(vtkPointSet* input);
+  /** The image sample distance for this frame (see AutoAdjustSampleDistances). */
+  int ChooseImageSampleDistance(vtkVolume* vol, int w, int h);
+  /** View depth of the opaque geometry drawn so far per viewport pixel (rows top first;
+   * infinity where none), empty when there is none. */
+  std::vector<float> DepthLimits(vtkRenderer* ren, int w, int h, int x0, int y0);
 
   struct Internals;
   std::unique_ptr<Internals> Impl;

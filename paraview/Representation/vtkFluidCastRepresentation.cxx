@@ -183,6 +183,21 @@ void vtkFluidCastRepresentation::SetAdapter(const char* name)
   this->Mapper->SetAdapter(name && name[0] ? name : nullptr);
 }
 
+void vtkFluidCastRepresentation::SetAutoAdjustSampleDistances(int on)
+{
+  this->Mapper->SetAutoAdjustSampleDistances(on);
+}
+
+void vtkFluidCastRepresentation::SetImageSampleDistance(int s)
+{
+  this->Mapper->SetImageSampleDistance(s);
+}
+
+void vtkFluidCastRepresentation::SetMaximumImageSampleDistance(int s)
+{
+  this->Mapper->SetMaximumImageSampleDistance(s);
+}
+
 //------------------------------------------------------------------------------
 void vtkFluidCastRepresentation::PrintSelf(ostream& os, vtkIndent indent)
 {

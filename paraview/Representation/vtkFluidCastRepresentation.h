@@ -49,6 +49,18 @@ public:
   void SetAdapter(const char* name);
   ///@}
 
+  ///@{
+  /**
+   * Forwarded to vtkFluidCastVolumeMapper: interactive renders (ParaView's, while the camera
+   * moves) cast one ray per ImageSampleDistance² pixels to fit the interactive frame time,
+   * up to MaximumImageSampleDistance; still renders are full resolution. Auto off: every
+   * render uses ImageSampleDistance.
+   */
+  void SetAutoAdjustSampleDistances(int on);
+  void SetImageSampleDistance(int s);
+  void SetMaximumImageSampleDistance(int s);
+  ///@}
+
   /** The mapper, for scripts that read LastDevice, LastSamples, ... */
   vtkFluidCastVolumeMapper* GetFluidCastMapper() { return this->Mapper; }
 

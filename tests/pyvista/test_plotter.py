@@ -247,3 +247,69 @@ def test_transfer_function_follows_pyvista(ddb, opacity):
     default = add(p, mesh)
     lo, hi = default.prop.GetRGBTransferFunction(0).GetRange()
     assert (lo, hi) == pytest.approx((speed.min(), speed.max()))
+
+
+def bilinear(img, w, h):
+    """``img`` interpolated onto w × h pixels covering the same window (pixel centres map
+    onto pixel centres, clamped at the edges): the oracle for a coarse interactive frame."""
+    sh, sw = img.shape[:2]
+    x = np.clip((np.arange(w) + 0.5) * sw / w - 0.5, 0, sw - 1)
+    y = np.clip((np.arange(h) + 0.5) * sh / h - 0.5, 0, sh - 1)
+    x0, y0 = x.astype(int), y.astype(int)
+    x1, y1 = np.minimum(x0 + 1, sw - 1), np.minimum(y0 + 1, sh - 1)
+    fx, fy = (x - x0)[None, :, None], (y - y0)[:, None, None]
+    f = img.astype(float)
+    top = f[y0][:, x0] + fx * (f[y0][:, x1] - f[y0][:, x0])
+    bottom = f[y1][:, x0] + fx * (f[y1][:, x1] - f[y1][:, x0])
+    return top + fy * (bottom - top)
+
+
+def test_image_sample_distance_renders_the_coarse_image(ddb, tmp_path):
+    """ImageSampleDistance 2 (auto adjust off): the image is the CLI's at half the size,
+    interpolated bilinearly (the CLI's 8-bit rounding, interpolated, stays within 2/255)."""
+    path, mesh = ddb
+    p = plotter()
+    volume = add(p, mesh)
+    p.view_isometric()
+    m = volume.mapper
+    m.AutoAdjustSampleDistancesOff()
+    m.SetImageSampleDistance(2)
+    p.render()
+    coarse = p.screenshot(return_img=True)
+    assert m.GetLastImageSampleDistance() == 2
+    half = tmp_path / "half.png"
+    save_camera(p.camera, tmp_path / "cam.json")
+    ctf, otf = volume.prop.GetRGBTransferFunction(0), volume.prop.GetScalarOpacity(0)
+    (tmp_path / "tf.json").write_text(json.dumps([tf_to_preset(ctf, otf)]))
+    lo, hi = ctf.GetRange()
+    run_fluidcast("render", path, "--array", "velocity:mag", "--tf", tmp_path / "tf.json",
+                  "--range", f"{lo!r},{hi!r}", "--camera", tmp_path / "cam.json",
+                  "--size", f"{SIZE[0] // 2}x{SIZE[1] // 2}", "--opacity-unit-distance",
+                  repr(volume.prop.GetScalarOpacityUnitDistance()), "--background", "1,1,1",
+                  "--error-tolerance", "off", "-o", half)
+    want = bilinear(read_png(half), *SIZE)
+    assert np.abs(coarse.astype(float) - want).max() <= ALLOWED + 0.5
+    full = cli_image(p, volume, path, tmp_path, "full")
+    assert max_diff(coarse, full) > 20, "a coarse image should differ from the full one"
+
+
+def test_auto_adjust_fits_the_allocated_time(ddb):
+    """AutoAdjustSampleDistances: a still render (VTK's default update rate) casts every
+    pixel; an interactive one with a tiny time budget takes the coarsest distance allowed,
+    and a budget of a few full frames takes the finest again."""
+    _, mesh = ddb
+    p = plotter()
+    volume = add(p, mesh)
+    m = volume.mapper
+    m.SetMaximumImageSampleDistance(6)
+    p.show(auto_close=False, interactive=False)  # the first frame: pyvista renders from here
+    assert m.GetLastImageSampleDistance() == 1
+    full_seconds = m.GetLastRenderMilliseconds() / 1e3
+    window = p.render_window
+    window.SetDesiredUpdateRate(1e6)  # a microsecond per frame: impossible
+    p.render()
+    assert m.GetLastImageSampleDistance() == 6
+    assert drawn(p.screenshot(return_img=True)).sum() > 1000
+    window.SetDesiredUpdateRate(1 / (20 * full_seconds))
+    p.render()
+    assert m.GetLastImageSampleDistance() == 1
