@@ -57,14 +57,17 @@ fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T
     if t <= pts[0].0 {
         return pts[0].1;
     }
-    for w in pts.windows(2) {
-        if t <= w[1].0 {
-            let d = w[1].0 - w[0].0;
-            let f = if d > 0.0 { (t - w[0].0) / d } else { 1.0 };
-            return mix(w[0].1, w[1].1, f);
-        }
+    // The first node at or right of t closes the segment (a binary search: VTK's and
+    // ParaView's tables have 1024 nodes and this runs once per sample).
+    let i = pts.partition_point(|p| p.0 < t);
+    if i == pts.len() || i == 0 {
+        // Right of the last node (or t NaN, which no node is left of).
+        return pts[pts.len() - 1].1;
     }
-    pts[pts.len() - 1].1
+    let (a, b) = (pts[i - 1], pts[i]);
+    let d = b.0 - a.0;
+    let f = if d > 0.0 { (t - a.0) / d } else { 1.0 };
+    mix(a.1, b.1, f)
 }
 
 impl TransferFunction {
@@ -234,6 +237,39 @@ impl TransferFunction {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The segment search of `lerp_at` against a plain scan of every segment: the same value
+    /// everywhere, on tables with repeated nodes (steps) and at the nodes themselves.
+    #[test]
+    fn lerp_at_matches_a_linear_scan() {
+        fn scan(pts: &[(f64, f64)], t: f64) -> f64 {
+            if t <= pts[0].0 {
+                return pts[0].1;
+            }
+            for w in pts.windows(2) {
+                if t <= w[1].0 {
+                    let d = w[1].0 - w[0].0;
+                    let f = if d > 0.0 { (t - w[0].0) / d } else { 1.0 };
+                    return w[0].1 + (w[1].1 - w[0].1) * f;
+                }
+            }
+            pts[pts.len() - 1].1
+        }
+        let xs = [0.0, 0.1, 0.1, 0.25, 0.5, 0.5, 0.5, 0.9, 1.0];
+        let pts: Vec<(f64, f64)> = xs
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| (x, (i * i) as f64))
+            .collect();
+        for k in -10..=110 {
+            let t = k as f64 / 100.0;
+            let got = lerp_at(&pts, t, |a, b, f| a + (b - a) * f);
+            assert_eq!(got, scan(&pts, t), "t = {t}");
+        }
+        for &t in &xs {
+            assert_eq!(lerp_at(&pts, t, |a, b, f| a + (b - a) * f), scan(&pts, t));
+        }
+    }
 
     #[test]
     fn presets_and_interpolation() {
