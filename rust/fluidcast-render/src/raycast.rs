@@ -37,13 +37,29 @@ impl Sums {
         if range.is_empty() {
             return None;
         }
-        for k in range.clone() {
-            let wgt = kernel.eval(pass.distance_at(zs[k]), p.h);
-            if wgt > 0.0 {
-                self.weighted[k] += p.v * p.a * wgt;
-                self.shepard[k] += p.v * wgt;
-                self.density[k] += p.m * wgt;
-            }
+        // W = norm(H)·shape(r/H): the normalisation and the particle's weights once, the
+        // shape per sample, in a loop per kernel that the compiler can vectorise.
+        let norm = kernel.norm(p.h);
+        let along = Along {
+            t: pass.t,
+            r2: pass.r2,
+            dd: ray.dd,
+            inv_h: 1.0 / p.h,
+        };
+        let w = [p.v * p.a * norm, p.v * norm, p.m * norm];
+        let out = [
+            &mut self.weighted[range.clone()],
+            &mut self.shepard[range.clone()],
+            &mut self.density[range.clone()],
+        ];
+        let zs = &zs[range.clone()];
+        match kernel {
+            Kernel::CubicSpline => along.add(|q| Kernel::CubicSpline.shape(q), zs, w, out),
+            Kernel::Quintic => along.add(|q| Kernel::Quintic.shape(q), zs, w, out),
+            Kernel::WendlandC2 => along.add(|q| Kernel::WendlandC2.shape(q), zs, w, out),
+            Kernel::WendlandC4 => along.add(|q| Kernel::WendlandC4.shape(q), zs, w, out),
+            Kernel::Poly6 => along.add(|q| Kernel::Poly6.shape(q), zs, w, out),
+            Kernel::Gaussian => along.add(|q| Kernel::Gaussian.shape(q), zs, w, out),
         }
         Some(range)
     }
@@ -67,6 +83,31 @@ impl Sums {
         self.weighted[r.clone()].fill(0.0);
         self.shepard[r.clone()].fill(0.0);
         self.density[r].fill(0.0);
+    }
+}
+
+/// A ray's passage near a particle: closest approach at view depth `t` (squared distance
+/// `r2`), the ray's |d|² and 1/H.
+struct Along {
+    t: f64,
+    r2: f64,
+    dd: f64,
+    inv_h: f64,
+}
+
+impl Along {
+    /// Adds `w · shape(r/H)` at each depth of `zs` to the three sums in `out`.
+    #[inline(always)]
+    fn add(&self, shape: impl Fn(f64) -> f64, zs: &[f64], w: [f64; 3], out: [&mut [f64]; 3]) {
+        let [weighted, shepard, density] = out;
+        let it = zs.iter().zip(weighted).zip(shepard).zip(density);
+        for (((&z, a), b), c) in it {
+            let dz = z - self.t;
+            let s = shape((self.r2 + self.dd * dz * dz).sqrt() * self.inv_h);
+            *a += w[0] * s;
+            *b += w[1] * s;
+            *c += w[2] * s;
+        }
     }
 }
 

@@ -98,12 +98,65 @@ impl Kernel {
             Kernel::Gaussian => {
                 // σ = H/3; normalisation of exp(-r²/2σ²) over the ball of radius 3σ:
                 // (2π)^{3/2} σ³ [erf(3/√2) − √(2/π)·3·e^{−9/2}].
-                let c = (2.0 * PI).powf(1.5)
-                    * (libm::erf(3.0 / std::f64::consts::SQRT_2)
-                        - (2.0 / PI).sqrt() * 3.0 * (-4.5f64).exp());
+                let c = gaussian_normalisation();
                 let sigma = h / 3.0;
                 (-(r * r) / (2.0 * sigma * sigma)).exp() / (c * sigma * sigma * sigma)
             }
+        }
+    }
+
+    /// The normalisation of `W(r, H) = norm(H) · shape(r/H)`, in 1/length³: computed once
+    /// per particle by the ray casters, whose inner loops evaluate [`Kernel::shape`] only.
+    #[inline]
+    pub fn norm(self, h: f64) -> f64 {
+        let h3 = h * h * h;
+        match self {
+            Kernel::CubicSpline => 8.0 / (PI * h3),
+            Kernel::Quintic => 27.0 / (120.0 * PI * h3),
+            Kernel::WendlandC2 => 21.0 / (2.0 * PI * h3),
+            Kernel::WendlandC4 => 495.0 / (32.0 * PI * h3),
+            Kernel::Poly6 => 315.0 / (64.0 * PI * h3),
+            Kernel::Gaussian => 27.0 / (gaussian_normalisation() * h3),
+        }
+    }
+
+    /// The dimensionless profile of `W` at `q = r/H` (see [`Kernel::norm`]); 0 for `q ≥ 1`.
+    /// Written without data-dependent loops so that a loop over samples vectorises.
+    #[inline(always)]
+    pub fn shape(self, q: f64) -> f64 {
+        let t = 1.0 - q;
+        let v = match self {
+            Kernel::CubicSpline => {
+                let near = 6.0 * q * q * q - 6.0 * q * q + 1.0;
+                if q <= 0.5 {
+                    near
+                } else {
+                    2.0 * t * t * t
+                }
+            }
+            Kernel::Quintic => {
+                let s = 3.0 * q;
+                let p5 = |x: f64| {
+                    let x = x.max(0.0);
+                    x * x * x * x * x
+                };
+                p5(3.0 - s) - 6.0 * p5(2.0 - s) + 15.0 * p5(1.0 - s)
+            }
+            Kernel::WendlandC2 => t * t * t * t * (1.0 + 4.0 * q),
+            Kernel::WendlandC4 => {
+                let t2 = t * t;
+                t2 * t2 * t2 * (1.0 + 6.0 * q + 35.0 / 3.0 * q * q)
+            }
+            Kernel::Poly6 => {
+                let d = 1.0 - q * q;
+                d * d * d
+            }
+            Kernel::Gaussian => (-4.5 * q * q).exp(),
+        };
+        if q < 1.0 {
+            v
+        } else {
+            0.0
         }
     }
 
@@ -112,6 +165,17 @@ impl Kernel {
     pub fn eval_f32(self, r: f32, h: f32) -> f32 {
         self.eval(r as f64, h as f64) as f32
     }
+}
+
+/// ∫ exp(−r²/2σ²) dV over the ball of radius 3σ, divided by σ³:
+/// (2π)^{3/2} [erf(3/√2) − √(2/π)·3·e^{−9/2}].
+fn gaussian_normalisation() -> f64 {
+    static C: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *C.get_or_init(|| {
+        (2.0 * PI).powf(1.5)
+            * (libm::erf(3.0 / std::f64::consts::SQRT_2)
+                - (2.0 / PI).sqrt() * 3.0 * (-4.5f64).exp())
+    })
 }
 
 impl fmt::Display for Kernel {
@@ -155,6 +219,22 @@ mod tests {
             s += if i % 2 == 1 { 4.0 } else { 2.0 } * f(i as f64 * dr);
         }
         s * dr / 3.0
+    }
+
+    #[test]
+    fn norm_times_shape_is_the_kernel() {
+        for k in Kernel::ALL {
+            for h in [0.01, 0.7, 3.0] {
+                for i in 0..=1100 {
+                    let q = i as f64 / 1000.0;
+                    let (want, got) = (k.eval(q * h, h), k.norm(h) * k.shape(q));
+                    assert!(
+                        (got - want).abs() <= 1e-13 * want.abs().max(k.norm(h)),
+                        "{k} h {h} q {q}: {got} vs {want}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
