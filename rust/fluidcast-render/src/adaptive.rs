@@ -1,7 +1,7 @@
 use std::borrow::Cow;
 use std::time::Instant;
 
-use fluidcast_grid::{PerspectiveGrid, Ray, ViewParticle};
+use fluidcast_grid::{PerspectiveGrid, Ray, SampleDepths, ViewParticle};
 use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, FieldParams, PlanParams, SamplingPlan};
 use fluidcast_sph::Particles;
@@ -117,79 +117,19 @@ pub fn render_adaptive(
         plan,
         mut stats,
     } = plan_adaptive(particles, surface, camera, tf, params)?;
-    let frame = grid.frame;
     let (w, h) = (params.width, params.height);
 
     let t2 = Instant::now();
     let mut image = Image::new(w, h);
     if let Some(depths) = &grid.depths {
         let dz = grid.params.depth_samples as usize;
+        let rays_per_bundle = (grid.params.bundle * grid.params.bundle) as usize;
         let results: Vec<BundleResult> = (0..grid.bundle_count())
             .into_par_iter()
             .filter(|&b| !grid.bundle_cells(b).is_empty())
             .map_init(
-                || (Sums::new(dz), Vec::<ViewParticle>::new()),
-                |(sums, local), b| {
-                    let bd = grid.bundle(b);
-                    let [x0, x1, y0, y1] = bd.pixels;
-                    let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
-                    let rays: Vec<Ray> = pixels
-                        .clone()
-                        .map(|(i, j)| Ray::through_pixel(&frame, i, j))
-                        .collect();
-                    let mut comps: Vec<Compositor> = pixels
-                        .map(|(i, j)| Compositor::new(params.depth_limit_at(i, j)))
-                        .collect();
-                    let mut zs = [0.0f64; 65];
-                    for span in plan.bundle_spans(b) {
-                        if comps.iter().all(|c| c.done) {
-                            break;
-                        }
-                        let first = span.first as usize;
-                        let k0 = grid.cells[first].z as usize * dz;
-                        if let Some(sp) = span.superpixel {
-                            let it = sp.map(f64::from);
-                            let z = (depths.z[k0], depths.z[k0 + span.count as usize * dz]);
-                            for c in comps.iter_mut().filter(|c| !c.done) {
-                                c.add(it, z, params.min_transmittance);
-                            }
-                            continue;
-                        }
-                        // Alg. 2: every ray of the bundle samples the same particles, at
-                        // D_z positions spaced 2^level samples apart.
-                        let step = 1usize << span.level;
-                        let n = span.count as usize * dz / step;
-                        for (m, z) in zs[..=n].iter_mut().enumerate() {
-                            *z = depths.z[k0 + m * step];
-                        }
-                        let cells = &grid.cells[first..first + span.count as usize];
-                        local.clear();
-                        local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
-                        for (ray, c) in rays.iter().zip(comps.iter_mut()) {
-                            if c.done {
-                                continue;
-                            }
-                            let (lo, hi) = local
-                                .iter()
-                                .filter_map(|p| sums.scatter(ray, p, &zs[..n], params.kernel))
-                                .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
-                            for m in lo..hi {
-                                if let Some(q) = sums.value(m, params.field) {
-                                    let z = (zs[m], zs[m + 1]);
-                                    c.sample(tf, q, z, ray.dlen, params.min_transmittance);
-                                    if c.done {
-                                        break;
-                                    }
-                                }
-                            }
-                            if lo < hi {
-                                sums.clear(lo..hi);
-                            }
-                        }
-                    }
-                    let samples = comps.iter().map(|c| c.samples).sum();
-                    (b, comps.iter().map(Compositor::pixel).collect(), samples)
-                },
+                || BundleScratch::new(rays_per_bundle, dz),
+                |scratch, b| cast_bundle(&grid, &plan, depths, tf, params, b, scratch),
             )
             .collect();
         for (b, px, n) in results {
@@ -215,6 +155,162 @@ pub fn render_adaptive(
         grid,
         plan,
     })
+}
+
+/// Per-thread working memory of [`cast_bundle`]: one ray's kernel sums per ray of a bundle,
+/// the sample indices each ray's sums touched, and the span's particles.
+struct BundleScratch {
+    sums: Vec<Sums>,
+    touched: Vec<(usize, usize)>,
+    local: Vec<ViewParticle>,
+}
+
+impl BundleScratch {
+    fn new(rays: usize, depth_samples: usize) -> BundleScratch {
+        BundleScratch {
+            // A span samples at most 64 depths (the plan caps spans at 4 cells of 16).
+            sums: vec![Sums::new(depth_samples.max(64)); rays],
+            touched: vec![(usize::MAX, 0); rays],
+            local: Vec::new(),
+        }
+    }
+}
+
+/// The bundle's rays as lines `o + z·d` (d.z = 1) per column and per row: column `i` has
+/// x = `x[i].0 + z·x[i].1`, row `j` has y = `y[j].0 + z·y[j].1` (perspective rays start at
+/// the eye, parallel ones are parallel to the view axis).
+struct BundleLines {
+    x: Vec<(f64, f64)>,
+    y: Vec<(f64, f64)>,
+}
+
+impl BundleLines {
+    fn new(rays: &[Ray], width: usize) -> BundleLines {
+        BundleLines {
+            x: rays[..width].iter().map(|r| (r.o[0], r.d[0])).collect(),
+            y: rays
+                .iter()
+                .step_by(width)
+                .map(|r| (r.o[1], r.d[1]))
+                .collect(),
+        }
+    }
+
+    /// The columns and rows whose rays can enter particle `p`'s support: those whose x
+    /// (resp. y) lies within the support's extent [c − H, c + H] at some depth inside
+    /// [c.z − H, c.z + H]. Conservative (a superset, widened against rounding); the exact
+    /// test is [`Ray::passage`]. Empty ranges when none can.
+    fn footprint(&self, p: &ViewParticle) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
+        let (z0, z1) = (p.c[2] - p.h, p.c[2] + p.h);
+        let reach = |lines: &[(f64, f64)], c: f64| {
+            let (lo, hi) = (c - p.h, c + p.h);
+            let slack = 1e-9 * (lo.abs().max(hi.abs()) + p.h);
+            // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
+            let hits = |&(o, d): &(f64, f64)| {
+                let (a, b) = (o + z0.max(0.0) * d, o + z1.max(0.0) * d);
+                a.min(b) <= hi + slack && a.max(b) >= lo - slack
+            };
+            let first = lines.iter().position(hits).unwrap_or(lines.len());
+            let end = lines.iter().rposition(hits).map_or(first, |k| k + 1);
+            first..end.max(first)
+        };
+        (reach(&self.x, p.c[0]), reach(&self.y, p.c[1]))
+    }
+}
+
+/// Ray casts bundle `b` of the plan: per span (Alg. 2: every ray of the bundle samples the
+/// same particles, at D_z positions spaced 2^level samples apart), each particle adds its
+/// kernel weights to the rays its footprint reaches, then each ray composites the samples
+/// that received any. Per ray the particles are summed in the span's order, as a ray-by-ray
+/// loop would.
+fn cast_bundle(
+    grid: &PerspectiveGrid,
+    plan: &SamplingPlan,
+    depths: &SampleDepths,
+    tf: &TransferFunction,
+    params: &RenderParams,
+    b: usize,
+    scratch: &mut BundleScratch,
+) -> BundleResult {
+    let dz = grid.params.depth_samples as usize;
+    let [x0, x1, y0, y1] = grid.bundle(b).pixels;
+    let width = (x1 - x0) as usize;
+    let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
+    let rays: Vec<Ray> = pixels
+        .clone()
+        .map(|(i, j)| Ray::through_pixel(&grid.frame, i, j))
+        .collect();
+    let lines = BundleLines::new(&rays, width);
+    let mut comps: Vec<Compositor> = pixels
+        .map(|(i, j)| Compositor::new(params.depth_limit_at(i, j)))
+        .collect();
+    let mut zs = [0.0f64; 65];
+    for span in plan.bundle_spans(b) {
+        if comps.iter().all(|c| c.done) {
+            break;
+        }
+        let first = span.first as usize;
+        let k0 = grid.cells[first].z as usize * dz;
+        if let Some(sp) = span.superpixel {
+            let it = sp.map(f64::from);
+            let z = (depths.z[k0], depths.z[k0 + span.count as usize * dz]);
+            for c in comps.iter_mut().filter(|c| !c.done) {
+                c.add(it, z, params.min_transmittance);
+            }
+            continue;
+        }
+        let step = 1usize << span.level;
+        let n = span.count as usize * dz / step;
+        for (m, z) in zs[..=n].iter_mut().enumerate() {
+            *z = depths.z[k0 + m * step];
+        }
+        let cells = &grid.cells[first..first + span.count as usize];
+        let BundleScratch {
+            sums,
+            touched,
+            local,
+        } = scratch;
+        local.clear();
+        local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
+        for p in local.iter() {
+            let (cols, rows) = lines.footprint(p);
+            for r in rows.flat_map(|j| cols.clone().map(move |i| j * width + i)) {
+                if comps[r].done {
+                    continue;
+                }
+                if let Some(got) = sums[r].scatter(&rays[r], p, &zs[..n], params.kernel) {
+                    let t = &mut touched[r];
+                    *t = (t.0.min(got.start), t.1.max(got.end));
+                }
+            }
+        }
+        for ((ray, c), (s, t)) in rays
+            .iter()
+            .zip(comps.iter_mut())
+            .zip(sums.iter_mut().zip(touched.iter_mut()))
+        {
+            let (lo, hi) = std::mem::replace(t, (usize::MAX, 0));
+            for m in lo..hi {
+                if c.done {
+                    break;
+                }
+                if let Some(q) = s.value(m, params.field) {
+                    c.sample(
+                        tf,
+                        q,
+                        (zs[m], zs[m + 1]),
+                        ray.dlen,
+                        params.min_transmittance,
+                    );
+                }
+            }
+            if lo < hi {
+                s.clear(lo..hi);
+            }
+        }
+    }
+    let samples = comps.iter().map(|c| c.samples).sum();
+    (b, comps.iter().map(Compositor::pixel).collect(), samples)
 }
 
 /// The plan's per-pixel diagnostics (`error_bound`, `level`, `superpixel`, each from the
@@ -260,4 +356,102 @@ pub fn bundle_aovs(
         ("level".into(), l),
         ("superpixel".into(), sp),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The rays of the 8×8 bundle at pixel (x0, y0) of a 64×48 view, perspective or parallel.
+    fn bundle_rays(parallel: bool, x0: u32, y0: u32) -> Vec<Ray> {
+        let camera = Camera {
+            parallel_projection: parallel,
+            parallel_scale: 0.6,
+            ..Camera::default()
+        };
+        let frame = camera.frame(64, 48).unwrap();
+        (y0..y0 + 8)
+            .flat_map(|j| (x0..x0 + 8).map(move |i| (i, j)))
+            .map(|(i, j)| Ray::through_pixel(&frame, i, j))
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The footprint holds every ray that enters the support (the exact test) at a depth
+        /// in front of the eye, where samples lie, for particles anywhere, the eye inside the
+        /// support included.
+        #[test]
+        fn footprint_holds_every_ray_that_enters(
+            parallel in any::<bool>(),
+            bx in 0u32..8,
+            by in 0u32..6,
+            c in prop::array::uniform3(-1.5f64..1.5),
+            h in 0.001f64..0.8,
+        ) {
+            let rays = bundle_rays(parallel, 8 * bx, 8 * by);
+            let lines = BundleLines::new(&rays, 8);
+            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let (cols, rows) = lines.footprint(&p);
+            for (r, ray) in rays.iter().enumerate() {
+                if ray.passage(&p).is_some_and(|pass| pass.z1 >= 0.0) {
+                    prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
+                        "ray {} enters but lies outside {:?} × {:?}", r, cols, rows);
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The same at the edge of the support: a particle whose centre lies just inside H
+        /// of a chosen ray (perpendicular offset 0.95–0.9999 H) has that ray in its footprint.
+        #[test]
+        fn footprint_holds_grazing_rays(
+            parallel in any::<bool>(),
+            r in 0usize..64,
+            z in 0.2f64..2.0,
+            f in 0.95f64..0.9999,
+            angle in 0.0f64..std::f64::consts::TAU,
+            h in 0.001f64..0.5,
+        ) {
+            let rays = bundle_rays(parallel, 24, 16);
+            let lines = BundleLines::new(&rays, 8);
+            let ray = &rays[r];
+            // Two unit vectors perpendicular to the ray's direction.
+            let d = ray.d.map(|v| v / ray.dlen);
+            let u = { let n = (d[0] * d[0] + d[2] * d[2]).sqrt(); [d[2] / n, 0.0, -d[0] / n] };
+            let w = [d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]];
+            let (ca, sa) = (angle.cos(), angle.sin());
+            let c = [0, 1, 2].map(|k| ray.o[k] + z * ray.d[k] + f * h * (ca * u[k] + sa * w[k]));
+            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            prop_assert!(ray.passage(&p).is_some());
+            let (cols, rows) = lines.footprint(&p);
+            prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
+                "ray {} grazes but lies outside {:?} × {:?}", r, cols, rows);
+        }
+    }
+
+    /// A small particle in front of the camera reaches a few of the bundle's rays, not all.
+    #[test]
+    fn footprint_of_a_small_particle_is_small() {
+        for parallel in [false, true] {
+            let rays = bundle_rays(parallel, 24, 16);
+            let lines = BundleLines::new(&rays, 8);
+            let centre = rays[3 * 8 + 3].d.map(|d| d * 0.5);
+            let o = rays[3 * 8 + 3].o;
+            let c = [o[0] + centre[0], o[1] + centre[1], o[2] + centre[2]];
+            let p = ViewParticle {
+                c,
+                h: 0.01,
+                v: 1.0,
+                a: 1.0,
+                m: 1.0,
+            };
+            let (cols, rows) = lines.footprint(&p);
+            assert!(cols.contains(&3) && rows.contains(&3), "{cols:?} {rows:?}");
+            assert!(cols.len() <= 3 && rows.len() <= 3, "{cols:?} {rows:?}");
+        }
+    }
 }
