@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 use fluidcast_image::{compare, Image};
 use fluidcast_io::Input;
-use fluidcast_render::{render_adaptive, render_reference, RenderStats};
+use fluidcast_render::{render_adaptive, render_object_space, render_reference, RenderStats};
 use fluidcast_sph::Particles;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -34,9 +34,13 @@ pub struct BenchArgs {
     /// Error tolerances to compare, comma-separated; `off` is always included.
     #[arg(long, default_value = "0.001,0.004,0.01")]
     tolerances: String,
-    /// Skip the reference renderer (it is the slowest).
+    /// Skip the reference renderer.
     #[arg(long)]
     no_reference: bool,
+    /// Also time the object-space baseline (per-sample gathering from a world-space
+    /// neighbour grid, the paper's comparison; slow: try a small --size first).
+    #[arg(long)]
+    object_space: bool,
     /// Write the results as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -105,7 +109,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         None => vec![0],
     };
     let spec = a.particles.spec()?;
-    let per_view = tols.len() * (1 + usize::from(gpu.is_some())) + usize::from(!a.no_reference);
+    let per_view = tols.len() * (1 + usize::from(gpu.is_some()))
+        + usize::from(!a.no_reference)
+        + usize::from(a.object_space);
     let pb = ProgressBar::new((frames.len() * a.views * per_view) as u64);
     pb.set_style(
         ProgressStyle::with_template(
@@ -117,6 +123,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_memory = 0u64;
     let mut reference = Runs::default();
+    let mut object = Runs::default();
     let mut setup = None;
     let mut particles_n = 0;
     for &fi in &frames {
@@ -137,6 +144,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 let (_, s) = render_reference(&particles, &cam, tf, &base)
                     .with_context(|| format!("rendering {}", file.display()))?;
                 reference.add(&s);
+                pb.inc(1);
+            }
+            if a.object_space {
+                let (_, s) = render_object_space(&particles, &cam, tf, &base)
+                    .with_context(|| format!("rendering {}", file.display()))?;
+                object.add(&s);
                 pb.inc(1);
             }
             let mut off_img: Option<Image> = None;
@@ -220,6 +233,23 @@ pub fn run(a: BenchArgs) -> Result<()> {
         );
         rows.push(json!({"mode": "reference", "bin_ms": reference.median("bin"), "raycast_ms": reference.median("raycast"),
                          "total_ms": t, "off_speedup_vs_reference": t / off_total}));
+    }
+    if a.object_space {
+        let t = object.median("total");
+        out!(
+            "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+            "object",
+            object.median("grid"),
+            "-",
+            object.median("raycast"),
+            t,
+            format!("{:.2} (off: {:.2}x)", off_total / t, t / off_total),
+            "-",
+            "-",
+            "-"
+        );
+        rows.push(json!({"mode": "object-space", "grid_ms": object.median("grid"), "raycast_ms": object.median("raycast"),
+                         "total_ms": t, "off_speedup_vs_object_space": t / off_total}));
     }
     for (t, tol) in tols.iter().enumerate() {
         let r = &runs[t];

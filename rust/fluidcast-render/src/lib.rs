@@ -18,6 +18,7 @@
 //!   tolerance it samples exactly the reference's positions.
 
 mod adaptive;
+mod object_space;
 mod raycast;
 mod reference;
 
@@ -30,6 +31,7 @@ pub use adaptive::{
 };
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats};
+pub use object_space::render_object_space;
 pub use reference::render_reference;
 
 use fluidcast_sph::{FieldKind, Kernel};
