@@ -7,14 +7,15 @@
 
 use std::time::Instant;
 
-use fluidcast_grid::{view_particles, SampleDepths};
+use fluidcast_grid::SampleDepths;
 use fluidcast_image::Image;
 use fluidcast_sph::{NeighbourGrid, Particles};
 use fluidcast_view::{Camera, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
-use crate::{ms, validate, RenderError, RenderParams, RenderStats};
+use crate::reference::RayView;
+use crate::{ms, RenderError, RenderParams, RenderStats};
 
 /// One image row: (premultiplied RGBA, depth) per pixel, samples taken.
 type Row = (Vec<([f32; 4], f32)>, u64);
@@ -27,31 +28,19 @@ pub fn render_object_space(
     params: &RenderParams,
 ) -> Result<(Image, RenderStats), RenderError> {
     let t0 = Instant::now();
-    validate(params)?;
     let (w, h) = (params.width, params.height);
-    let frame = camera.frame(w, h)?;
-    let mut stats = RenderStats {
-        particles: particles.len(),
-        particles_visible: particles.len(),
-        width: w,
-        height: h,
-        ..Default::default()
-    };
-    let mut image = Image::new(w, h);
-    let Some((near, far)) = view_particles(particles, &frame).range else {
+    let RayView {
+        frame,
+        mut stats,
+        mut image,
+        depths,
+        ..
+    } = RayView::new(particles, camera, params)?;
+    stats.particles_visible = particles.len();
+    let Some(depths) = depths else {
         stats.stages.push(("total", ms(t0)));
         return Ok((image, stats));
     };
-    let depths = SampleDepths::new(
-        &frame,
-        near,
-        far,
-        params.sampling_scale,
-        params.grid.depth_samples as usize,
-    )?;
-    stats.depth_samples = depths.len();
-    stats.near = near;
-    stats.far = far;
     let scene = Gather {
         particles,
         grid: particles.neighbour_grid(),

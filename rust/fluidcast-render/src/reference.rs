@@ -3,7 +3,7 @@ use std::time::Instant;
 use fluidcast_grid::{screen_rect, view_particles, GridError, Ray, SampleDepths, ViewParticle};
 use fluidcast_image::Image;
 use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_view::{Camera, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
@@ -14,6 +14,59 @@ const TILE: u32 = 8;
 /// One tile's output: tile index, (premultiplied RGBA, depth) per pixel, samples taken.
 type TileResult = (u32, Vec<([f32; 4], f32)>, u64);
 
+/// What the renderers that cast every pixel's ray (reference, object space) start from: the
+/// checked parameters' view frame, stats and an empty image, the particles in view space and
+/// the sample depths over their depth range (`None` when everything lies behind the camera).
+pub(crate) struct RayView {
+    pub frame: ViewFrame,
+    pub stats: RenderStats,
+    pub image: Image,
+    pub particles: Vec<ViewParticle>,
+    pub depths: Option<SampleDepths>,
+}
+
+impl RayView {
+    pub fn new(
+        particles: &Particles,
+        camera: &Camera,
+        params: &RenderParams,
+    ) -> Result<RayView, RenderError> {
+        validate(params)?;
+        let (w, h) = (params.width, params.height);
+        let frame = camera.frame(w, h)?;
+        let mut stats = RenderStats {
+            particles: particles.len(),
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        let vp = view_particles(particles, &frame);
+        let depths = match vp.range {
+            Some((near, far)) => {
+                let d = SampleDepths::new(
+                    &frame,
+                    near,
+                    far,
+                    params.sampling_scale,
+                    params.grid.depth_samples as usize,
+                )?;
+                stats.depth_samples = d.len();
+                stats.near = near;
+                stats.far = far;
+                Some(d)
+            }
+            None => None,
+        };
+        Ok(RayView {
+            frame,
+            stats,
+            image: Image::new(w, h),
+            particles: vp.list,
+            depths,
+        })
+    }
+}
+
 /// Renders `particles` with the reference renderer. The image holds premultiplied RGBA and
 /// per-pixel depth (see [`Image`]).
 pub fn render_reference(
@@ -23,32 +76,19 @@ pub fn render_reference(
     params: &RenderParams,
 ) -> Result<(Image, RenderStats), RenderError> {
     let t0 = Instant::now();
-    validate(params)?;
     let (w, h) = (params.width, params.height);
-    let frame = camera.frame(w, h)?;
-    let mut stats = RenderStats {
-        particles: particles.len(),
-        width: w,
-        height: h,
-        ..Default::default()
-    };
-    let mut image = Image::new(w, h);
-    let vp = view_particles(particles, &frame);
-    let Some((near, far)) = vp.range else {
+    let RayView {
+        frame,
+        mut stats,
+        mut image,
+        particles: vps,
+        depths,
+    } = RayView::new(particles, camera, params)?;
+    let Some(depths) = depths else {
         stats.stages.push(("total", ms(t0)));
         return Ok((image, stats)); // everything behind the camera
     };
-    let vps = vp.list;
-    let depths = SampleDepths::new(
-        &frame,
-        near,
-        far,
-        params.sampling_scale,
-        params.grid.depth_samples as usize,
-    )?;
-    stats.depth_samples = depths.len();
-    stats.near = near;
-    stats.far = far;
+    let (near, far) = (depths.near, depths.far);
 
     // Bin particles into screen tiles by a conservative screen-space bound of their support.
     let tiles_x = w.div_ceil(TILE);

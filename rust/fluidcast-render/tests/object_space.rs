@@ -4,10 +4,9 @@
 //! parallel, plus an opaque surface that ends the rays.
 
 mod common;
-use common::cloud;
+use common::{cloud, cloud_view};
 use fluidcast_render::{render_object_space, render_reference, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel};
-use fluidcast_view::{Camera, TransferFunction};
 
 #[test]
 fn object_space_equals_reference() {
@@ -18,21 +17,7 @@ fn object_space_equals_reference() {
         (false, FieldKind::Density, Kernel::Quintic, None),
         (false, FieldKind::Csph, Kernel::WendlandC4, Some(0.5)),
     ] {
-        let mut cam = Camera::default();
-        cam.reset([-0.7; 3], [0.7; 3]);
-        cam.azimuth(35.0);
-        cam.elevation(20.0);
-        cam.parallel_projection = parallel;
-        let (lo, hi) = match field {
-            FieldKind::Density => (0.0, 800.0),
-            FieldKind::Sph => (0.0, 0.2),
-            FieldKind::Csph => (-0.5, 1.0),
-        };
-        let mut tf = TransferFunction::preset("viridis")
-            .unwrap()
-            .with_range(lo, hi)
-            .unwrap();
-        tf.unit_distance = 0.3;
+        let (cam, tf) = cloud_view(35.0, 20.0, parallel, field);
         let (w, h) = (32, 24);
         let mut prm = RenderParams {
             width: w,

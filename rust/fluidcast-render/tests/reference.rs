@@ -1,5 +1,5 @@
 mod common;
-use common::cloud;
+use common::{cloud, cloud_view};
 use fluidcast_render::{render_reference, RenderParams, SampleDepths};
 use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
@@ -61,21 +61,7 @@ fn reference_equals_brute_force() {
         (true, FieldKind::Sph, Kernel::WendlandC2),
         (false, FieldKind::Density, Kernel::Quintic),
     ] {
-        let mut cam = Camera::default();
-        cam.reset([-0.7; 3], [0.7; 3]);
-        cam.azimuth(25.0);
-        cam.elevation(-15.0);
-        cam.parallel_projection = parallel;
-        let (lo, hi) = match field {
-            FieldKind::Density => (0.0, 800.0),
-            FieldKind::Sph => (0.0, 0.2),
-            FieldKind::Csph => (-0.5, 1.0),
-        };
-        let mut tf = TransferFunction::preset("viridis")
-            .unwrap()
-            .with_range(lo, hi)
-            .unwrap();
-        tf.unit_distance = 0.3;
+        let (cam, tf) = cloud_view(25.0, -15.0, parallel, field);
         let prm = RenderParams {
             width: 24,
             height: 18,

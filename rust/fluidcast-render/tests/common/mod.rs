@@ -1,7 +1,7 @@
 //! Scene generators shared by the render tests.
 #![allow(dead_code)]
 
-use fluidcast_sph::Particles;
+use fluidcast_sph::{FieldKind, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 
 #[allow(unused_imports)]
@@ -11,6 +11,33 @@ pub use fluidcast_testkit::rng;
 /// and volumes and the smooth attribute x + 2y².
 pub fn cloud(n: usize, seed: u32) -> Particles {
     fluidcast_testkit::cloud(n, seed, (0.15, 0.1))
+}
+
+/// The view of [`cloud`] the renderer-vs-renderer tests use: the cube from an azimuth and
+/// elevation (degrees), perspective or parallel, and Viridis over a range that suits the
+/// field kind, with opacity unit distance 0.3.
+pub fn cloud_view(
+    azimuth: f64,
+    elevation: f64,
+    parallel: bool,
+    field: FieldKind,
+) -> (Camera, TransferFunction) {
+    let mut cam = Camera::default();
+    cam.reset([-0.7; 3], [0.7; 3]);
+    cam.azimuth(azimuth);
+    cam.elevation(elevation);
+    cam.parallel_projection = parallel;
+    let (lo, hi) = match field {
+        FieldKind::Density => (0.0, 800.0),
+        FieldKind::Sph => (0.0, 0.2),
+        FieldKind::Csph => (-0.5, 1.0),
+    };
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(lo, hi)
+        .unwrap();
+    tf.unit_distance = 0.3;
+    (cam, tf)
 }
 
 /// A lattice slab of (2·6+1)² × `nz` particles, spacing 0.05, support radius 0.1, value 0.7,
