@@ -85,6 +85,34 @@ impl Runs {
     }
 }
 
+/// Prints the table row of a renderer the adaptive one is measured against (its set-up
+/// stage `prep`, ray casting, total, and full rate's speed-up over it) and returns its JSON.
+fn baseline_row(
+    label: &str,
+    mode: &str,
+    runs: &Runs,
+    prep: &str,
+    off_total: f64,
+) -> Result<serde_json::Value> {
+    let t = runs.median("total");
+    out!(
+        "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+        label,
+        runs.median(prep),
+        "-",
+        runs.median("raycast"),
+        t,
+        format!("{:.2} (off: {:.2}x)", off_total / t, t / off_total),
+        "-",
+        "-",
+        "-"
+    );
+    let mut row = json!({"mode": mode, "raycast_ms": runs.median("raycast"), "total_ms": t});
+    row[format!("{prep}_ms")] = json!(runs.median(prep));
+    row[format!("off_speedup_vs_{}", mode.replace('-', "_"))] = json!(t / off_total);
+    Ok(row)
+}
+
 pub fn run(a: BenchArgs) -> Result<()> {
     if a.views == 0 {
         bail!("--views must be at least 1");
@@ -218,38 +246,22 @@ pub fn run(a: BenchArgs) -> Result<()> {
     );
     let mut rows = Vec::new();
     if !a.no_reference {
-        let t = reference.median("total");
-        out!(
-            "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+        rows.push(baseline_row(
             "reference",
-            reference.median("bin"),
-            "-",
-            reference.median("raycast"),
-            t,
-            format!("{:.2} (off: {:.2}x)", off_total / t, t / off_total),
-            "-",
-            "-",
-            "-"
-        );
-        rows.push(json!({"mode": "reference", "bin_ms": reference.median("bin"), "raycast_ms": reference.median("raycast"),
-                         "total_ms": t, "off_speedup_vs_reference": t / off_total}));
+            "reference",
+            &reference,
+            "bin",
+            off_total,
+        )?);
     }
     if a.object_space {
-        let t = object.median("total");
-        out!(
-            "{:<10} {:>8.1} {:>8} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+        rows.push(baseline_row(
             "object",
-            object.median("grid"),
-            "-",
-            object.median("raycast"),
-            t,
-            format!("{:.2} (off: {:.2}x)", off_total / t, t / off_total),
-            "-",
-            "-",
-            "-"
-        );
-        rows.push(json!({"mode": "object-space", "grid_ms": object.median("grid"), "raycast_ms": object.median("raycast"),
-                         "total_ms": t, "off_speedup_vs_object_space": t / off_total}));
+            "object-space",
+            &object,
+            "grid",
+            off_total,
+        )?);
     }
     for (t, tol) in tols.iter().enumerate() {
         let r = &runs[t];
