@@ -140,28 +140,6 @@ void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
     prop->GetScalarOpacityUnitDistance(0));
 }
 
-/** Per-pixel values of a w × h image (rows top first) at the centres of the sw × sh pixels
- * that cover the same window (nearest pixel); `full` itself when the sizes agree or it is
- * empty. */
-std::vector<float> Subsample(std::vector<float> full, int w, int h, int sw, int sh)
-{
-  if (full.empty() || (sw == w && sh == h))
-  {
-    return full;
-  }
-  std::vector<float> out(static_cast<size_t>(sw) * sh);
-  for (int j = 0; j < sh; ++j)
-  {
-    const int fj = std::min(h - 1, static_cast<int>((j + 0.5) * h / sh));
-    for (int i = 0; i < sw; ++i)
-    {
-      const int fi = std::min(w - 1, static_cast<int>((i + 0.5) * w / sw));
-      out[static_cast<size_t>(j) * sw + i] = full[static_cast<size_t>(fj) * w + fi];
-    }
-  }
-  return out;
-}
-
 /** A premultiplied RGBA image of sw × sh pixels (rows top first) interpolated bilinearly onto
  * the w × h pixels of the same window. */
 std::vector<float> Upsample(std::vector<float> small, int sw, int sh, int w, int h)
@@ -500,7 +478,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // One ray per s × s pixels (s = 1 on still renders), then interpolated to the viewport.
   const int s = this->ChooseImageSampleDistance(vol, w, h);
   const int sw = (w + s - 1) / s, sh = (h + s - 1) / s;
-  std::vector<float> limit = Subsample(this->DepthLimits(ren, w, h, x0, y0), w, h, sw, sh);
+  std::vector<float> limit = this->DepthLimits(ren, w, h, x0, y0, sw, sh);
   std::vector<float> rgba(static_cast<size_t>(4) * sw * sh), depth(static_cast<size_t>(sw) * sh);
   try
   {
@@ -562,10 +540,11 @@ int vtkFluidCastVolumeMapper::ChooseImageSampleDistance(vtkVolume* vol, int w, i
 
 //------------------------------------------------------------------------------
 std::vector<float> vtkFluidCastVolumeMapper::DepthLimits(
-  vtkRenderer* ren, int w, int h, int x0, int y0)
+  vtkRenderer* ren, int w, int h, int x0, int y0, int sw, int sh)
 {
-  // Opaque geometry drawn so far: window depth -> view depth along the camera's axis, our
-  // rows top first; empty when nothing opaque is drawn (or the depth cannot be read).
+  // Opaque geometry drawn so far: window depth -> view depth along the camera's axis, per
+  // cast ray (the viewport pixel nearest its centre), rows top first; empty when nothing
+  // opaque is drawn (or the depth cannot be read).
   std::vector<float> zbuf(static_cast<size_t>(w) * h);
   if (ren->GetRenderWindow()->GetZbufferData(x0, y0, x0 + w - 1, y0 + h - 1, zbuf.data()) !=
     VTK_OK)
@@ -581,11 +560,14 @@ std::vector<float> vtkFluidCastVolumeMapper::DepthLimits(
   double fwd[3] = { f[0] - p[0], f[1] - p[1], f[2] - p[2] };
   vtkMath::Normalize(fwd);
   bool any = false;
-  std::vector<float> limit(zbuf.size(), std::numeric_limits<float>::infinity());
-  for (int jv = 0; jv < h; ++jv)
+  std::vector<float> limit(static_cast<size_t>(sw) * sh, std::numeric_limits<float>::infinity());
+  for (int jc = 0; jc < sh; ++jc)
   {
-    for (int i = 0; i < w; ++i)
+    const int j = std::min(h - 1, static_cast<int>((jc + 0.5) * h / sh)); // from the top
+    const int jv = h - 1 - j;                                              // from the bottom
+    for (int ic = 0; ic < sw; ++ic)
     {
+      const int i = std::min(w - 1, static_cast<int>((ic + 0.5) * w / sw));
       const float zb = zbuf[static_cast<size_t>(jv) * w + i];
       if (!(zb < 1.0f))
       {
@@ -600,7 +582,7 @@ std::vector<float> vtkFluidCastVolumeMapper::DepthLimits(
       {
         d += (world[k] / world[3] - p[k]) * fwd[k];
       }
-      limit[static_cast<size_t>(h - 1 - jv) * w + i] = static_cast<float>(std::max(d, 0.0));
+      limit[static_cast<size_t>(jc) * sw + ic] = static_cast<float>(std::max(d, 0.0));
       any = true;
     }
   }

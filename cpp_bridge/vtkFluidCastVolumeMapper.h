@@ -245,9 +245,9 @@ private:
   bool UploadNow(vtkPointSet* input);
   /** The image sample distance for this frame (see AutoAdjustSampleDistances). */
   int ChooseImageSampleDistance(vtkVolume* vol, int w, int h);
-  /** View depth of the opaque geometry drawn so far per viewport pixel (rows top first;
-   * infinity where none), empty when there is none. */
-  std::vector<float> DepthLimits(vtkRenderer* ren, int w, int h, int x0, int y0);
+  /** View depth of the opaque geometry drawn so far for each of the sw × sh rays cast over
+   * the w × h viewport (rows top first; infinity where none), empty when there is none. */
+  std::vector<float> DepthLimits(vtkRenderer* ren, int w, int h, int x0, int y0, int sw, int sh);
 
   struct Internals;
   std::unique_ptr<Internals> Impl;
