@@ -37,10 +37,10 @@ def add(p, mesh, **kw):
     return fluidcast.add_particles(p, mesh, "velocity", **kw)
 
 
-def cli_image(p, volume, data, tmp_path, tag, *extra):
+def cli_image(p, volume, data, tmp_path, tag, *extra, size=SIZE):
     """`fluidcast render` of ``data`` with the plotter's camera and the volume's transfer
     function, opacity unit distance and tolerance, over a white background, and ``extra``
-    options."""
+    options, at ``size`` (default: the plotter's)."""
     prop, mapper = volume.prop, volume.mapper
     camera = save_camera(p.camera, tmp_path / f"{tag}_camera.json")
     tf = tmp_path / f"{tag}_tf.json"
@@ -50,7 +50,7 @@ def cli_image(p, volume, data, tmp_path, tag, *extra):
     out = tmp_path / f"{tag}_cli.png"
     run_fluidcast("render", data, "--array", "velocity:mag", "--tf", tf,
                   "--range", f"{lo!r},{hi!r}", "--camera", camera,
-                  "--size", f"{SIZE[0]}x{SIZE[1]}",
+                  "--size", f"{size[0]}x{size[1]}",
                   "--opacity-unit-distance", repr(prop.GetScalarOpacityUnitDistance()),
                   "--background", "1,1,1", "--error-tolerance", "off"
                   if mapper.GetErrorTolerance() == 0 else repr(mapper.GetErrorTolerance()),
@@ -277,17 +277,8 @@ def test_image_sample_distance_renders_the_coarse_image(ddb, tmp_path):
     p.render()
     coarse = p.screenshot(return_img=True)
     assert m.GetLastImageSampleDistance() == 2
-    half = tmp_path / "half.png"
-    save_camera(p.camera, tmp_path / "cam.json")
-    ctf, otf = volume.prop.GetRGBTransferFunction(0), volume.prop.GetScalarOpacity(0)
-    (tmp_path / "tf.json").write_text(json.dumps([tf_to_preset(ctf, otf)]))
-    lo, hi = ctf.GetRange()
-    run_fluidcast("render", path, "--array", "velocity:mag", "--tf", tmp_path / "tf.json",
-                  "--range", f"{lo!r},{hi!r}", "--camera", tmp_path / "cam.json",
-                  "--size", f"{SIZE[0] // 2}x{SIZE[1] // 2}", "--opacity-unit-distance",
-                  repr(volume.prop.GetScalarOpacityUnitDistance()), "--background", "1,1,1",
-                  "--error-tolerance", "off", "-o", half)
-    want = bilinear(read_png(half), *SIZE)
+    half = cli_image(p, volume, path, tmp_path, "half", size=(SIZE[0] // 2, SIZE[1] // 2))
+    want = bilinear(half, *SIZE)
     assert np.abs(coarse.astype(float) - want).max() <= ALLOWED + 0.5
     full = cli_image(p, volume, path, tmp_path, "full")
     assert max_diff(coarse, full) > 20, "a coarse image should differ from the full one"
