@@ -8,7 +8,8 @@ use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use rayon::prelude::*;
 
-use crate::raycast::{Compositor, Sums};
+use crate::raycast::Compositor;
+use crate::span::{BundleRays, Scatter, SpanSums, LANES};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 /// Neighbour-count ratio below which a particle counts as a surface particle (see
@@ -123,12 +124,11 @@ pub fn render_adaptive(
     let mut image = Image::new(w, h);
     if let Some(depths) = &grid.depths {
         let dz = grid.params.depth_samples as usize;
-        let rays_per_bundle = (grid.params.bundle * grid.params.bundle) as usize;
         let results: Vec<BundleResult> = (0..grid.bundle_count())
             .into_par_iter()
             .filter(|&b| !grid.bundle_cells(b).is_empty())
             .map_init(
-                || BundleScratch::new(rays_per_bundle, dz),
+                || BundleScratch::new(grid.params.bundle as usize, dz),
                 |scratch, b| cast_bundle(&grid, &plan, depths, tf, params, b, scratch),
             )
             .collect();
@@ -157,21 +157,22 @@ pub fn render_adaptive(
     })
 }
 
-/// Per-thread working memory of [`cast_bundle`]: one ray's kernel sums per ray of a bundle,
-/// the sample indices each ray's sums touched, and the span's particles.
+/// Per-thread working memory of [`cast_bundle`]: the span's kernel sums and particles, and
+/// which rays still take samples.
 struct BundleScratch {
-    sums: Vec<Sums>,
-    touched: Vec<(usize, usize)>,
+    sums: SpanSums,
     local: Vec<ViewParticle>,
+    live: Vec<bool>,
 }
 
 impl BundleScratch {
-    fn new(rays: usize, depth_samples: usize) -> BundleScratch {
+    fn new(bundle: usize, depth_samples: usize) -> BundleScratch {
+        let slots = bundle * bundle.div_ceil(LANES) * LANES;
         BundleScratch {
             // A span samples at most 64 depths (the plan caps spans at 4 cells of 16).
-            sums: vec![Sums::new(depth_samples.max(64)); rays],
-            touched: vec![(usize::MAX, 0); rays],
+            sums: SpanSums::new(slots, depth_samples.max(64)),
             local: Vec::new(),
+            live: vec![false; slots],
         }
     }
 }
@@ -200,6 +201,7 @@ impl BundleLines {
     /// (resp. y) lies within the support's extent [c − H, c + H] at some depth inside
     /// [c.z − H, c.z + H]. Conservative (a superset, widened against rounding); the exact
     /// test is [`Ray::passage`]. Empty ranges when none can.
+    #[inline(always)]
     fn footprint(&self, p: &ViewParticle) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
         let (z0, z1) = (p.c[2] - p.h, p.c[2] + p.h);
         let reach = |lines: &[(f64, f64)], c: f64| {
@@ -241,6 +243,7 @@ fn cast_bundle(
         .map(|(i, j)| Ray::through_pixel(&grid.frame, i, j))
         .collect();
     let lines = BundleLines::new(&rays, width);
+    let lanes = BundleRays::new(&rays, width);
     let mut comps: Vec<Compositor> = pixels
         .map(|(i, j)| Compositor::new(params.depth_limit_at(i, j)))
         .collect();
@@ -265,36 +268,29 @@ fn cast_bundle(
             *z = depths.z[k0 + m * step];
         }
         let cells = &grid.cells[first..first + span.count as usize];
-        let BundleScratch {
-            sums,
-            touched,
-            local,
-        } = scratch;
+        let BundleScratch { sums, local, live } = scratch;
         local.clear();
         local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
-        for p in local.iter() {
-            let (cols, rows) = lines.footprint(p);
-            for r in rows.flat_map(|j| cols.clone().map(move |i| j * width + i)) {
-                if comps[r].done {
-                    continue;
-                }
-                if let Some(got) = sums[r].scatter(&rays[r], p, &zs[..n], params.kernel) {
-                    let t = &mut touched[r];
-                    *t = (t.0.min(got.start), t.1.max(got.end));
-                }
-            }
+        for (r, c) in comps.iter().enumerate() {
+            live[lanes.slot(r)] = !c.done;
         }
-        for ((ray, c), (s, t)) in rays
-            .iter()
-            .zip(comps.iter_mut())
-            .zip(sums.iter_mut().zip(touched.iter_mut()))
-        {
-            let (lo, hi) = std::mem::replace(t, (usize::MAX, 0));
-            for m in lo..hi {
+        pulp::Arch::new().dispatch(Scatter {
+            sums,
+            rays: &lanes,
+            footprint: |p: &ViewParticle| lines.footprint(p),
+            particles: local,
+            zs: &zs[..n],
+            live,
+            kernel: params.kernel,
+            field: params.field,
+        });
+        for (r, (ray, c)) in rays.iter().zip(comps.iter_mut()).enumerate() {
+            let slot = lanes.slot(r);
+            for m in sums.touched(slot) {
                 if c.done {
                     break;
                 }
-                if let Some(q) = s.value(m, params.field) {
+                if let Some(q) = sums.value(m, slot, params.field) {
                     c.sample(
                         tf,
                         q,
@@ -304,9 +300,7 @@ fn cast_bundle(
                     );
                 }
             }
-            if lo < hi {
-                s.clear(lo..hi);
-            }
+            sums.clear(slot);
         }
     }
     let samples = comps.iter().map(|c| c.samples).sum();

@@ -21,6 +21,7 @@ mod adaptive;
 mod object_space;
 mod raycast;
 mod reference;
+mod span;
 
 use std::sync::Arc;
 use std::time::Instant;
