@@ -5,7 +5,7 @@ use fluidcast_grid::{PerspectiveGrid, Ray, SampleDepths, ViewParticle};
 use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, FieldParams, PlanParams, SamplingPlan};
 use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_view::{Camera, TfLookup, TransferFunction};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
@@ -122,6 +122,7 @@ pub fn render_adaptive(
 
     let t2 = Instant::now();
     let mut image = Image::new(w, h);
+    let lookup = TfLookup::new(tf);
     if let Some(depths) = &grid.depths {
         let dz = grid.params.depth_samples as usize;
         let results: Vec<BundleResult> = (0..grid.bundle_count())
@@ -129,7 +130,7 @@ pub fn render_adaptive(
             .filter(|&b| !grid.bundle_cells(b).is_empty())
             .map_init(
                 || BundleScratch::new(grid.params.bundle as usize, dz),
-                |scratch, b| cast_bundle(&grid, &plan, depths, tf, params, b, scratch),
+                |scratch, b| cast_bundle(&grid, &plan, depths, &lookup, params, b, scratch),
             )
             .collect();
         for (b, px, n) in results {
@@ -229,7 +230,7 @@ fn cast_bundle(
     grid: &PerspectiveGrid,
     plan: &SamplingPlan,
     depths: &SampleDepths,
-    tf: &TransferFunction,
+    tf: &TfLookup,
     params: &RenderParams,
     b: usize,
     scratch: &mut BundleScratch,

@@ -10,7 +10,7 @@ use std::time::Instant;
 use fluidcast_grid::SampleDepths;
 use fluidcast_image::Image;
 use fluidcast_sph::{NeighbourGrid, Particles};
-use fluidcast_view::{Camera, TransferFunction, ViewFrame};
+use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
@@ -47,7 +47,7 @@ pub fn render_object_space(
         bounds: support_bounds(particles),
         frame: &frame,
         depths: &depths,
-        tf,
+        tf: TfLookup::new(tf),
         params,
     };
     stats.stages.push(("grid", ms(t0)));
@@ -98,7 +98,7 @@ struct Gather<'a> {
     bounds: [[f64; 2]; 3],
     frame: &'a ViewFrame,
     depths: &'a SampleDepths,
-    tf: &'a TransferFunction,
+    tf: TfLookup<'a>,
     params: &'a RenderParams,
 }
 
@@ -121,7 +121,7 @@ impl Gather<'_> {
             // As the other renderers: no sample where no particle reaches.
             if s.shepard > 0.0 {
                 if let Some(q) = s.value(prm.field) {
-                    comp.sample(self.tf, q, (z[k], z[k + 1]), dlen, prm.min_transmittance);
+                    comp.sample(&self.tf, q, (z[k], z[k + 1]), dlen, prm.min_transmittance);
                 }
             }
             if comp.done {

@@ -3,7 +3,7 @@
 
 use fluidcast_grid::{within, Ray, ViewParticle};
 use fluidcast_sph::{FieldKind, Kernel};
-use fluidcast_view::TransferFunction;
+use fluidcast_view::TfLookup;
 
 /// Kernel sums of one ray at a set of sample depths.
 #[derive(Debug, Clone)]
@@ -141,14 +141,7 @@ impl Compositor {
     /// (`dlen` world units per unit of view depth along this ray); a step that reaches past
     /// the limit is cut there.
     #[inline]
-    pub fn sample(
-        &mut self,
-        tf: &TransferFunction,
-        q: f64,
-        (z0, z1): (f64, f64),
-        dlen: f64,
-        min_t: f64,
-    ) {
+    pub fn sample(&mut self, tf: &TfLookup, q: f64, (z0, z1): (f64, f64), dlen: f64, min_t: f64) {
         if z0 >= self.limit {
             self.done = true;
             return;
@@ -156,7 +149,7 @@ impl Compositor {
         let (rgb, alpha) = tf.eval(q);
         // The step is cut at the limit here, so `add` must see it ending there (not cut again).
         let z1 = z1.min(self.limit);
-        let a = tf.step_alpha(alpha, (z1 - z0) * dlen);
+        let a = tf.tf.step_alpha(alpha, (z1 - z0) * dlen);
         self.samples += 1;
         self.add(
             [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],

@@ -3,7 +3,7 @@ use std::time::Instant;
 use fluidcast_grid::{screen_rect, view_particles, GridError, Ray, SampleDepths, ViewParticle};
 use fluidcast_image::Image;
 use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction, ViewFrame};
+use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
@@ -127,6 +127,7 @@ pub fn render_reference(
     // Ray cast tile by tile.
     let t1 = Instant::now();
     let zs = &depths.z[..depths.len()];
+    let tf = &TfLookup::new(tf);
     let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()

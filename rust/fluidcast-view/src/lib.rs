@@ -5,4 +5,4 @@ mod presets_data;
 mod transfer;
 
 pub use camera::{Camera, CameraError, ViewFrame};
-pub use transfer::{TransferFunction, TransferFunctionError};
+pub use transfer::{TfLookup, TransferFunction, TransferFunctionError};

@@ -54,12 +54,24 @@ fn normalise<T: Copy>(pts: &mut [(f64, T)]) {
 }
 
 fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T {
+    // The first node at or right of t closes the segment (a binary search: VTK's and
+    // ParaView's tables have 1024 nodes and this runs once per sample).
+    lerp_in(pts, t, mix, |t| pts.partition_point(|p| p.0 < t))
+}
+
+/// [`lerp_at`] with the segment search given: `closing(t)` is the index of the first node
+/// at or right of `t` (`pts.partition_point(|p| p.0 < t)`).
+#[inline]
+fn lerp_in<T: Copy>(
+    pts: &[(f64, T)],
+    t: f64,
+    mix: impl Fn(T, T, f64) -> T,
+    closing: impl Fn(f64) -> usize,
+) -> T {
     if t <= pts[0].0 {
         return pts[0].1;
     }
-    // The first node at or right of t closes the segment (a binary search: VTK's and
-    // ParaView's tables have 1024 nodes and this runs once per sample).
-    let i = pts.partition_point(|p| p.0 < t);
+    let i = closing(t);
     if i == pts.len() || i == 0 {
         // Right of the last node (or t NaN, which no node is left of).
         return pts[pts.len() - 1].1;
@@ -206,10 +218,8 @@ impl TransferFunction {
     /// Colour and opacity at map position `t` (0..1, see [`TransferFunction::normalised`]).
     pub fn eval_normalised(&self, t: f64) -> ([f64; 3], f64) {
         (
-            lerp_at(&self.colors, t, |a, b, f| {
-                [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)
-            }),
-            lerp_at(&self.opacity, t, |a, b, f| a + (b - a) * f),
+            lerp_at(&self.colors, t, mix_rgb),
+            lerp_at(&self.opacity, t, mix_scalar),
         )
     }
 
@@ -234,9 +244,111 @@ impl TransferFunction {
     }
 }
 
+/// Equal parts of [0, 1] that [`TfLookup`] indexes.
+const BUCKETS: usize = 1024;
+
+/// For each part `b` of [`BUCKETS`] (the map positions `[b, b+1)/BUCKETS`), the first node at
+/// or right of its start; `BUCKETS + 1` entries.
+fn bucket_starts<T>(pts: &[(f64, T)]) -> Vec<u32> {
+    (0..=BUCKETS)
+        .map(|b| pts.partition_point(|p| p.0 < b as f64 / BUCKETS as f64) as u32)
+        .collect()
+}
+
+/// The first node of `pts` at or right of `t`, searching only the nodes of `t`'s bucket:
+/// `pts.partition_point(|p| p.0 < t)` exactly. `t·BUCKETS` is exact (a power of two), so
+/// every node before `starts[b]` lies left of `b/BUCKETS ≤ t` and every node from
+/// `starts[b + 1]` on at or right of `(b + 1)/BUCKETS > t`.
+#[inline]
+fn closing_node<T>(pts: &[(f64, T)], starts: &[u32], t: f64) -> usize {
+    if !(0.0..1.0).contains(&t) {
+        return pts.partition_point(|p| p.0 < t);
+    }
+    let b = (t * BUCKETS as f64) as usize;
+    let (lo, hi) = (starts[b] as usize, starts[b + 1] as usize);
+    lo + pts[lo..hi].partition_point(|p| p.0 < t)
+}
+
+/// A transfer function with its node tables indexed for many lookups: [`TfLookup::eval`]
+/// equals [`TransferFunction::eval`] bit for bit, without a binary search over every node
+/// (ParaView's colour maps have up to 1024). Built once per render.
+#[derive(Debug, Clone)]
+pub struct TfLookup<'a> {
+    pub tf: &'a TransferFunction,
+    colors: Vec<u32>,
+    opacity: Vec<u32>,
+}
+
+impl<'a> TfLookup<'a> {
+    pub fn new(tf: &'a TransferFunction) -> TfLookup<'a> {
+        TfLookup {
+            tf,
+            colors: bucket_starts(&tf.colors),
+            opacity: bucket_starts(&tf.opacity),
+        }
+    }
+
+    /// Colour and opacity per unit distance at data value `q`, as [`TransferFunction::eval`].
+    #[inline]
+    pub fn eval(&self, q: f64) -> ([f64; 3], f64) {
+        let Some(t) = self.tf.normalised(q) else {
+            return ([0.0; 3], 0.0);
+        };
+        let (c, o) = (&self.tf.colors, &self.tf.opacity);
+        (
+            lerp_in(c, t, mix_rgb, |t| closing_node(c, &self.colors, t)),
+            lerp_in(o, t, mix_scalar, |t| closing_node(o, &self.opacity, t)),
+        )
+    }
+}
+
+fn mix_rgb(a: [f64; 3], b: [f64; 3], f: f64) -> [f64; 3] {
+    [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * f)
+}
+
+fn mix_scalar(a: f64, b: f64, f: f64) -> f64 {
+    a + (b - a) * f
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// The indexed lookup equals the plain one bit for bit: random node tables with
+        /// repeated nodes and nodes on bucket edges, at random values, at the nodes, on
+        /// bucket edges, outside the range and at NaN.
+        #[test]
+        fn lookup_equals_eval(
+            xs in prop::collection::vec(prop_oneof![0.0f64..1.0, (0u32..=16).prop_map(|k| k as f64 / 16.0)], 1..300),
+            qs in prop::collection::vec(-0.2f64..1.2, 50),
+            lo in -5.0f64..5.0,
+            span in 0.01f64..10.0,
+        ) {
+            let mut xs = xs;
+            xs.sort_by(f64::total_cmp);
+            let nodes = |k: usize| xs.iter().enumerate().map(|(i, &x)| (x, (i * k % 7) as f64 / 7.0)).collect::<Vec<_>>();
+            let tf = TransferFunction {
+                name: "random".into(),
+                colors: nodes(3).into_iter().map(|(x, v)| (x, [v, 1.0 - v, v * v])).collect(),
+                opacity: nodes(5),
+                range: (lo, lo + span),
+                unit_distance: 1.0,
+            };
+            let lookup = TfLookup::new(&tf);
+            let at = |t: f64| lo + t * span;
+            let edges = (0..=BUCKETS).step_by(37).map(|b| at(b as f64 / BUCKETS as f64));
+            let all = qs.iter().map(|&t| at(t)).chain(xs.iter().map(|&x| at(x))).chain(edges)
+                .chain([f64::NAN, lo, lo + span, f64::INFINITY, f64::NEG_INFINITY]);
+            for q in all {
+                let (a, b) = (lookup.eval(q), tf.eval(q));
+                prop_assert!(a.0.map(f64::to_bits) == b.0.map(f64::to_bits) && a.1.to_bits() == b.1.to_bits(),
+                    "q {}: {:?} vs {:?}", q, a, b);
+            }
+        }
+    }
 
     /// The segment search of `lerp_at` against a plain scan of every segment: the same value
     /// everywhere, on tables with repeated nodes (steps) and at the nodes themselves.
