@@ -33,7 +33,7 @@
 mod interval;
 mod tfbounds;
 
-use fluidcast_grid::{Bundle, Cell, PerspectiveGrid};
+use fluidcast_grid::{Bundle, Cell, PerspectiveGrid, ViewParticle};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::TransferFunction;
 use rayon::prelude::*;
@@ -342,13 +342,91 @@ fn transmittance(kappa: f64, ds: f64) -> Option<f64> {
 /// Sub-bundles per side for the coverage test (2×2 rays each for D_xy = 8).
 const COVER_SPLIT: u32 = 4;
 
+/// Most sub-bundle columns (and rows) of the coverage test.
+const SIDE: usize = COVER_SPLIT as usize;
+
+/// A bundle's sub-bundles for the coverage test, a `cols × rows` grid (as
+/// [`Bundle::split`] cuts it, row-major): the rays' x extremes per column and y extremes per
+/// row ([`Bundle::x`], [`Bundle::y`]), which the parts of a column (row) share.
+struct Parts {
+    x: [[f64; 2]; SIDE],
+    y: [[f64; 2]; SIDE],
+    cols: usize,
+    rows: usize,
+    parallel: bool,
+    /// Bit s set for each part.
+    all: u64,
+    /// Smallest squared half diagonal of a part (at unit depth for a perspective view).
+    r2_min: f64,
+}
+
+impl Parts {
+    /// From `parts` of [`Bundle::split`] with `COVER_SPLIT`: `cols` parts share the first
+    /// row's y extremes.
+    fn new(parts: &[Bundle]) -> Parts {
+        let cols = parts
+            .iter()
+            .take_while(|b| parts.first().is_some_and(|f| b.y == f.y))
+            .count()
+            .clamp(1, SIDE);
+        let rows = (parts.len() / cols).min(SIDE);
+        let mut out = Parts {
+            x: [[0.0; 2]; SIDE],
+            y: [[0.0; 2]; SIDE],
+            cols,
+            rows,
+            parallel: parts.first().is_some_and(|b| b.parallel),
+            all: (1u64 << (cols * rows)) - 1,
+            r2_min: parts
+                .iter()
+                .map(|b| 0.25 * ((b.x[1] - b.x[0]).powi(2) + (b.y[1] - b.y[0]).powi(2)))
+                .fold(f64::INFINITY, f64::min),
+        };
+        for (x, b) in out.x.iter_mut().zip(parts) {
+            *x = b.x;
+        }
+        for (y, b) in out.y.iter_mut().zip(parts.iter().step_by(cols)).take(rows) {
+            *y = b.y;
+        }
+        out
+    }
+
+    /// Bit `v·cols + u` set when part (u, v) is [`Bundle::covered_by`] `p` at depth `z`: the
+    /// same arithmetic, the far-corner offsets once per column and row.
+    #[inline]
+    fn covered(&self, p: &ViewParticle, z: f64) -> u64 {
+        let dz = z - p.c[2];
+        let lim = (p.h * p.h - dz * dz) * (1.0 - 1e-9);
+        if lim <= 0.0 {
+            return 0;
+        }
+        let at = |v: f64| if self.parallel { v } else { v * z };
+        let far = |e: [f64; 2], c: f64| (at(e[0]) - c).abs().max((at(e[1]) - c).abs());
+        let fx = self.x.map(|e| far(e, p.c[0]));
+        let fy = self.y.map(|e| far(e, p.c[1]));
+        let (fx, fy) = (&fx[..self.cols], &fy[..self.rows]);
+        let nearest = |f: &[f64]| f.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+        let (mx, my) = (nearest(fx), nearest(fy));
+        if mx * mx + my * my >= lim {
+            return 0; // not even the nearest column and row
+        }
+        let mut bits = 0u64;
+        for (v, y) in fy.iter().enumerate() {
+            for (u, x) in fx.iter().enumerate() {
+                bits |= u64::from(x * x + y * y < lim) << (v * self.cols + u);
+            }
+        }
+        bits
+    }
+}
+
 /// Bounds of one cell for levels 0..=max_level (Sec. 4.1–4.2). `parts` are the bundle's
 /// sub-bundles for the coverage test. Returns true when some sample that a particle reaches
 /// may still be empty for some ray (a coverage gap).
 fn cell_bounds(
     grid: &PerspectiveGrid,
     bundle: &Bundle,
-    parts: &[Bundle],
+    parts: &Parts,
     cell: &Cell,
     tfb: &TfBounds,
     params: &FieldParams,
@@ -365,17 +443,9 @@ fn cell_bounds(
     let mut sum_hi = [0.0f64; 64];
     let mut any = [false; 64];
     // Bit s set: every ray of sub-bundle s is inside some particle's support at sample k.
-    let full: u64 = if parts.len() >= 64 {
-        u64::MAX
-    } else {
-        (1u64 << parts.len()) - 1
-    };
+    let full = parts.all;
     let mut cover = [0u64; 64];
-    // Smallest squared half diagonal of a sub-bundle (at unit depth for a perspective view).
-    let part_r2 = parts
-        .iter()
-        .map(|b| 0.25 * ((b.x[1] - b.x[0]).powi(2) + (b.y[1] - b.y[0]).powi(2)))
-        .fold(f64::INFINITY, f64::min);
+    let part_r2 = parts.r2_min;
     for &j in &grid.refs[cell.start as usize..cell.end as usize] {
         let p = &grid.particles[j as usize];
         let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
@@ -408,11 +478,7 @@ fn cell_bounds(
                 if bundle.covered_by(p, zs[k]) {
                     cover[k] = full;
                 } else {
-                    for (s, part) in parts.iter().enumerate() {
-                        if cover[k] & (1 << s) == 0 && part.covered_by(p, zs[k]) {
-                            cover[k] |= 1 << s;
-                        }
-                    }
+                    cover[k] |= parts.covered(p, zs[k]);
                 }
             }
         }
@@ -509,7 +575,7 @@ fn plan_bundle(
         };
     };
     let bundle = grid.bundle(b);
-    let parts = bundle.split(&grid.frame, COVER_SPLIT);
+    let parts = Parts::new(&bundle.split(&grid.frame, COVER_SPLIT));
     let maxl = grid.params.max_level() as usize;
     let budget = tol - field.min_transmittance.max(0.0);
     let mut bounds = vec![[Bound::EMPTY; LEVELS]; n];
@@ -684,5 +750,59 @@ fn plan_bundle(
             superpixel: nsp as f32 / nn,
         },
         stats,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fluidcast_view::Camera;
+    use proptest::prelude::*;
+
+    static PARTIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+    /// The property below sees partial coverage (some parts, not all) often.
+    #[test]
+    fn parts_cover_partially_often() {
+        parts_cover_as_each_part_does();
+        assert!(PARTIAL.load(std::sync::atomic::Ordering::Relaxed) > 50);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(500))]
+        /// The coverage test of all parts at once equals each part's own
+        /// [`Bundle::covered_by`], bit for bit: bundles of 1 to 11 pixels a side (1 to 4
+        /// parts a side), perspective and parallel views, discs that cover none, some and all.
+        #[test]
+        fn parts_cover_as_each_part_does(
+            parallel in any::<bool>(),
+            (x0, y0) in (0u32..50, 0u32..36),
+            (w, h) in (1u32..12, 1u32..12),
+            z in 0.3f64..3.0,
+            (fx, fy) in (-1.5f64..1.5, -1.5f64..1.5),
+            dz in -0.5f64..0.5,
+            r in 0.3f64..1.5,
+        ) {
+            let camera = Camera { parallel_projection: parallel, parallel_scale: 0.6, ..Camera::default() };
+            let frame = camera.frame(64, 48).unwrap();
+            let bundle = Bundle::from_pixels(&frame, [x0, x0 + w, y0, y0 + h]);
+            let split = bundle.split(&frame, COVER_SPLIT);
+            let parts = Parts::new(&split);
+            // A disc centred near the bundle's middle ray at depth z, offset by fx, fy
+            // bundle widths.
+            let [bx0, bx1, by0, by1] = bundle.rect_at(z);
+            let c = [
+                0.5 * (bx0 + bx1) + fx * (bx1 - bx0),
+                0.5 * (by0 + by1) + fy * (by1 - by0),
+                z + dz * r * (bx1 - bx0).max(by1 - by0),
+            ];
+            // Support radius r bundle sizes (and at least a tiny one for one-pixel bundles).
+            let h = (r * (bx1 - bx0).max(by1 - by0)).max(1e-4);
+            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let want = split.iter().enumerate().fold(0u64, |m, (s, b)| m | (u64::from(b.covered_by(&p, z)) << s));
+            prop_assert_eq!(parts.covered(&p, z), want);
+            prop_assert_eq!(parts.all.count_ones() as usize, split.len());
+            PARTIAL.fetch_add(u64::from(want != 0 && want != parts.all), std::sync::atomic::Ordering::Relaxed);
+        }
     }
 }
