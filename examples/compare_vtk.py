@@ -85,7 +85,7 @@ def numbers(s, n=None, name="value"):
     return v
 
 
-def radius_of(ds, path, a) -> float:
+def radius_of(ds, path, a, binary) -> float:
     if a.support_radius is not None:
         if not a.support_radius > 0:
             raise SystemExit(f"--support-radius {a.support_radius}: must be > 0")
@@ -97,7 +97,7 @@ def radius_of(ds, path, a) -> float:
                 f"{path}: '{a.radius_array}' varies ({r.min():g} to {r.max():g}); VTK's "
                 "vtkSPHInterpolator takes one spatial step, so pass --support-radius")
         return float(r[0])
-    return support_radius(ds, path)
+    return support_radius(ds, path, binary)
 
 
 def run(a) -> dict:
@@ -129,7 +129,7 @@ def run(a) -> dict:
         lo, hi = float(values.min()), float(values.max())
     if not hi > lo:
         hi = lo + 1.0
-    H = radius_of(ds, path, a)
+    H = radius_of(ds, path, a, binary)
     mass, density = volume_arrays(ds)
     b = np.array(ds.GetBounds()).reshape(3, 2)
     unit = a.opacity_unit_distance or float(np.linalg.norm(b[:, 1] - b[:, 0]) / np.cbrt(n))

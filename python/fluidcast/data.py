@@ -80,11 +80,12 @@ def volume_arrays(ds: vtk.vtkPointSet) -> tuple[str | None, str | None]:
     return (mass, dens) if mass and dens else (None, None)
 
 
-def support_radius(ds: vtk.vtkPointSet, path: Path) -> float:
+def support_radius(ds: vtk.vtkPointSet, path: Path, binary: Path | None = None) -> float:
     """The file's ``support_radius`` field data (SPlisHSPlasH writes it) or fluidcast's
-    suggestion (``fluidcast info --json``)."""
+    suggestion (``fluidcast info --json``, run with ``binary`` or the one
+    ``fluidcast.cli.fluidcast_binary`` finds)."""
     fd = ds.GetFieldData().GetArray("support_radius")
     if fd is not None:
         return float(fd.GetTuple1(0))
-    info = json.loads(run_fluidcast("info", path, "--json").stdout)
+    info = json.loads(run_fluidcast("info", path, "--json", binary=binary).stdout)
     return float(info["suggested_support_radius"])
