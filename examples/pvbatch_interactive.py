@@ -4,14 +4,20 @@ renders (what ParaView does while the camera moves) of one data set while the ca
     tests/vtk/with_xvfb.sh env LD_PRELOAD=$PWD/build/lib/libfluidcast_expat_fix.so \\
         PYTHONPATH=build/python pvbatch examples/pvbatch_interactive.py \\
         build/lib/paraview-plugins/fluidcast/fluidcast.so DATA.vtu \\
-        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0]
+        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--cli]
 
 Prints a table of milliseconds per frame (wall clock around the view's render call) and the
-mapper's image sample distance. A benchmark, not a test: run it on a quiet machine.
+mapper's image sample distance. With --cli it then renders the last view once more and times
+`fluidcast render` (the CLI the build made) on the same image: the view's camera, transfer
+function, opacity unit distance and tolerance, and prints the ratio and the largest pixel
+difference. A benchmark, not a test: run it on a quiet machine.
 """
 import argparse
+import json
 import statistics
+import tempfile
 import time
+from pathlib import Path
 
 from fluidcast import vtkFluidCastVolumeMapper  # noqa: F401 (its Python wrapping)
 from paraview.simple import (
@@ -32,6 +38,7 @@ p.add_argument("--array", default="velocity")
 p.add_argument("--size", default="1024x768")
 p.add_argument("--frames", type=int, default=6)
 p.add_argument("--auto", type=int, default=1, help="FluidCastAutoAdjustSampleDistances")
+p.add_argument("--cli", action="store_true", help="also time the CLI on the last still image")
 a = p.parse_args()
 W, H = (int(v) for v in a.size.split("x"))
 
@@ -51,7 +58,8 @@ cam.Elevation(20)
 Render(view)
 volumes = view.GetClientSideObject().GetRenderer().GetVolumes()
 volumes.InitTraversal()
-mapper = volumes.GetNextVolume().GetMapper()
+volume = volumes.GetNextVolume()
+mapper = volume.GetMapper()
 
 
 def timed(render):
@@ -76,3 +84,59 @@ for i, (still, inter) in enumerate(rows):
 s = statistics.median(r[0][0] for r in rows)
 t = statistics.median(r[1][0] for r in rows)
 print(f"median: still {s:.0f} ms, interactive {t:.0f} ms, ratio {s / t:.1f}x")
+
+
+def cli_comparison(out: Path):
+    """Still-renders the current view, then times `fluidcast render` of the same image."""
+    import numpy as np
+    import vtk
+    from fluidcast.camera import save_camera
+    from fluidcast.cli import fluidcast_binary, run_fluidcast
+    from fluidcast.images import read_png
+    from fluidcast.transfer import tf_to_preset
+
+    view.OrientationAxesVisibility = 0
+    if hasattr(view, "UseColorPaletteForBackground"):
+        view.UseColorPaletteForBackground = 0  # ParaView >= 5.10 takes the palette's otherwise
+    view.Background = [1, 1, 1]
+    still, _ = timed(view.StillRender)
+    shot = vtk.vtkWindowToImageFilter()
+    shot.SetInput(view.GetRenderWindow())
+    shot.ReadFrontBufferOff()
+    writer = vtk.vtkPNGWriter()
+    writer.SetInputConnection(shot.GetOutputPort())
+    writer.SetFileName(str(out / "paraview.png"))
+    writer.Write()
+    prop = volume.GetProperty()
+    # A plain vtkColorTransferFunction: ParaView's subclass wraps GetColor(x) differently.
+    ctf = vtk.vtkColorTransferFunction()
+    ctf.DeepCopy(prop.GetRGBTransferFunction(0))
+    otf = prop.GetScalarOpacity(0)
+    (out / "tf.json").write_text(json.dumps([tf_to_preset(ctf, otf)]))
+    lo, hi = ctf.GetRange()
+    tol = mapper.GetErrorTolerance()
+    binary = fluidcast_binary(Path(__file__).resolve().parents[1])
+    t = time.perf_counter()
+    run_fluidcast("render", a.data, "--array", f"{a.array}:mag", "--tf", out / "tf.json",
+                  "--range", f"{lo!r},{hi!r}", "--camera", save_camera(cam, out / "camera.json"),
+                  "--size", f"{W}x{H}", "--background", "1,1,1",
+                  "--opacity-unit-distance", repr(prop.GetScalarOpacityUnitDistance()),
+                  "--error-tolerance", "off" if tol == 0 else repr(tol),
+                  "--backend", "cpu", "-o", out / "cli.png", binary=binary)
+    cli = 1e3 * (time.perf_counter() - t)
+    a_img, b_img = read_png(out / "paraview.png"), read_png(out / "cli.png")
+    diff = np.abs(a_img.astype(int) - b_img.astype(int)).max() if a_img.shape == b_img.shape \
+        else float("nan")
+    print(f"same image: pvbatch still {still:.0f} ms, `fluidcast render` {cli:.0f} ms "
+          f"(process wall time, file read included), still / CLI {still / cli:.2f}; "
+          f"max pixel difference {diff}/255 ({binary})")
+
+
+if a.cli:
+    import os
+    keep = os.environ.get("KEEP")
+    if keep:
+        cli_comparison(Path(keep))
+    else:
+        with tempfile.TemporaryDirectory() as d:
+            cli_comparison(Path(d))
