@@ -134,15 +134,28 @@ fn bundle_rect_and_coverage_hold_the_rays() {
     }
 }
 
+/// Both ways of `within` (counting for up to 64 depths, binary search above), at depths
+/// between samples, on samples, outside and reversed.
 #[test]
 fn within_matches_a_scan() {
-    let zs: Vec<f64> = (0..50).map(|i| 1.0 + 0.1 * i as f64).collect();
-    for (a, b) in [(0.0, 10.0), (1.05, 1.3), (1.1, 1.1), (3.0, 2.0), (6.0, 9.0)] {
-        let r = within(&zs, a, b);
-        let want: Vec<usize> = (0..zs.len())
-            .filter(|&k| zs[k] >= a && zs[k] <= b)
-            .collect();
-        assert_eq!(r.collect::<Vec<_>>(), want);
+    for n in [1, 16, 50, 64, 65, 300] {
+        let zs: Vec<f64> = (0..n).map(|i| 1.0 + 0.1 * i as f64).collect();
+        let cases = [
+            (0.0, 100.0),
+            (1.05, 1.3),
+            (1.1, 1.1),
+            (3.0, 2.0),
+            (6.0, 9.0),
+            (1.0, 1.0),
+        ];
+        let edges = [(zs[n - 1], 100.0), (zs[0], zs[0])];
+        for (a, b) in cases.into_iter().chain(edges) {
+            let r = within(&zs, a, b);
+            let want: Vec<usize> = (0..zs.len())
+                .filter(|&k| zs[k] >= a && zs[k] <= b)
+                .collect();
+            assert_eq!(r.collect::<Vec<_>>(), want, "{n} depths, [{a}, {b}]");
+        }
     }
 }
 
