@@ -108,10 +108,7 @@ def cli_comparison(out: Path):
     writer.SetFileName(str(out / "paraview.png"))
     writer.Write()
     prop = volume.GetProperty()
-    # A plain vtkColorTransferFunction: ParaView's subclass wraps GetColor(x) differently.
-    ctf = vtk.vtkColorTransferFunction()
-    ctf.DeepCopy(prop.GetRGBTransferFunction(0))
-    otf = prop.GetScalarOpacity(0)
+    ctf, otf = prop.GetRGBTransferFunction(0), prop.GetScalarOpacity(0)
     (out / "tf.json").write_text(json.dumps([tf_to_preset(ctf, otf)]))
     lo, hi = ctf.GetRange()
     tol = mapper.GetErrorTolerance()

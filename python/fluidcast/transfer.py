@@ -7,6 +7,14 @@ import numpy as np
 import vtk
 
 
+def color_at(ctf: vtk.vtkColorTransferFunction, x: float) -> list[float]:
+    """RGB at ``x`` through the two-argument ``GetColor``, which every subclass wraps alike
+    (ParaView's ``vtkPVDiscretizableColorTransferFunction`` has no one-argument form)."""
+    rgb = [0.0, 0.0, 0.0]
+    ctf.GetColor(x, rgb)
+    return rgb
+
+
 def tf_to_preset(ctf: vtk.vtkColorTransferFunction, otf: vtk.vtkPiecewiseFunction,
                  name: str = "from VTK", samples: int = 256) -> dict:
     """A VTK colour + opacity transfer function → one ParaView colour-map preset (the JSON
@@ -41,7 +49,7 @@ def tf_to_preset(ctf: vtk.vtkColorTransferFunction, otf: vtk.vtkPiecewiseFunctio
             lo, hi = min(lo, on[0][0]), max(hi, on[-1][0])
         xs = np.unique(np.r_[np.linspace(lo, hi, samples), [n[0] for n in cn],
                              [n[0] for n in on]])
-        rgb = [c for x in xs for c in (x, *ctf.GetColor(x))]
+        rgb = [c for x in xs for c in (x, *color_at(ctf, x))]
         pts = [c for x in xs for c in (x, otf.GetValue(x), 0.5, 0.0)]
     preset = {"Name": name, "ColorSpace": "RGB", "RGBPoints": [float(v) for v in rgb]}
     if on:
