@@ -42,8 +42,49 @@ struct vtkFluidCastVolumeMapper::Internals
   vtkPointSet* UploadedInput = nullptr;
   bool UploadOk = false;
   std::string UploadError;
-  /** Wall-clock seconds per ray of the last frame, all its work included. */
-  double SecondsPerRay = 0.0;
+  /** Rays cast and wall-clock seconds of a frame, all its work included. */
+  struct Frame
+  {
+    double Rays = 0.0;
+    double Seconds = 0.0;
+  };
+  /** The last frame, and the last one before it that cast another number of rays. */
+  Frame Last, Before;
+
+  void Record(double rays, double seconds)
+  {
+    if (rays != this->Last.Rays)
+    {
+      this->Before = this->Last;
+    }
+    this->Last = { rays, seconds };
+  }
+
+  /**
+   * Predicted seconds for a frame of `rays` rays: the line through the last two frames of
+   * different sizes (a fixed part, e.g. the grid and the plan, plus a part per ray), or
+   * proportional to the last frame while there is only one (or the two disagree).
+   * 0 before any frame.
+   */
+  double Predict(double rays) const
+  {
+    if (!(this->Last.Rays > 0))
+    {
+      return 0.0;
+    }
+    const double perRay = this->Last.Seconds / this->Last.Rays;
+    if (this->Before.Rays > 0)
+    {
+      const double slope =
+        (this->Last.Seconds - this->Before.Seconds) / (this->Last.Rays - this->Before.Rays);
+      if (slope > 0)
+      {
+        const double fixed = std::max(0.0, this->Last.Seconds - slope * this->Last.Rays);
+        return fixed + slope * rays;
+      }
+    }
+    return perRay * rays;
+  }
 };
 
 // vtkErrorMacro that also keeps the message for GetLastError (scripts read it there).
@@ -506,7 +547,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   const std::chrono::duration<double> took = std::chrono::steady_clock::now() - start;
   this->LastRenderMilliseconds = 1e3 * took.count();
   this->LastImageSampleDistance = s;
-  this->Impl->SecondsPerRay = took.count() / (static_cast<double>(sw) * sh);
+  this->Impl->Record(static_cast<double>(sw) * sh, took.count());
 }
 
 //------------------------------------------------------------------------------
@@ -522,15 +563,14 @@ int vtkFluidCastVolumeMapper::ChooseImageSampleDistance(vtkVolume* vol, int w, i
   // among the props), e.g. 10000 s for VTK's still renders, 0.2 s in ParaView's
   // interactive renders, 1/15 s while a VTK interactor moves the camera.
   const double budget = vol->GetAllocatedRenderTime();
-  const double perRay = this->Impl->SecondsPerRay;
-  if (!(budget > 0) || !(perRay > 0))
+  if (!(budget > 0) || !(this->Impl->Predict(1.0) > 0))
   {
     return lo; // nothing measured yet: the first frame learns the cost at full quality
   }
   for (int s = lo; s < hi; ++s)
   {
     const double rays = static_cast<double>((w + s - 1) / s) * ((h + s - 1) / s);
-    if (rays * perRay <= budget)
+    if (this->Impl->Predict(rays) <= budget)
     {
       return s;
     }

@@ -152,7 +152,8 @@ public:
    * DesiredUpdateRate, which VTK's interactors and ParaView's interactive renders raise while
    * the camera moves): it casts one ray per ImageSampleDistance × ImageSampleDistance pixels,
    * the smallest distance in [MinimumImageSampleDistance, MaximumImageSampleDistance] whose
-   * predicted time (from the last frame's time per ray) fits, and interpolates the image
+   * predicted time fits (a fixed part plus a part per ray, the line through the last two
+   * frames of different sizes; per ray alone after the first frame), and interpolates the image
    * bilinearly. Still renders (allocated seconds to minutes) get full resolution. Off: every
    * frame uses ImageSampleDistance. Distances are whole pixels.
    */
