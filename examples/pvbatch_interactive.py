@@ -4,7 +4,7 @@ renders (what ParaView does while the camera moves) of one data set while the ca
     tests/vtk/with_xvfb.sh env LD_PRELOAD=$PWD/build/lib/libfluidcast_expat_fix.so \\
         PYTHONPATH=build/python pvbatch examples/pvbatch_interactive.py \\
         build/lib/paraview-plugins/fluidcast/fluidcast.so DATA.vtu \\
-        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--cli]
+        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--cli [--cli-out DIR]]
 
 Prints a table of milliseconds per frame (wall clock around the view's render call) and the
 mapper's image sample distance. With --cli it then renders the last view once more and times
@@ -39,6 +39,8 @@ p.add_argument("--size", default="1024x768")
 p.add_argument("--frames", type=int, default=6)
 p.add_argument("--auto", type=int, default=1, help="FluidCastAutoAdjustSampleDistances")
 p.add_argument("--cli", action="store_true", help="also time the CLI on the last still image")
+p.add_argument("--cli-out", type=Path,
+               help="with --cli: keep both images, the camera and the transfer function here")
 a = p.parse_args()
 W, H = (int(v) for v in a.size.split("x"))
 
@@ -88,11 +90,10 @@ print(f"median: still {s:.0f} ms, interactive {t:.0f} ms, ratio {s / t:.1f}x")
 
 def cli_comparison(out: Path):
     """Still-renders the current view, then times `fluidcast render` of the same image."""
-    import numpy as np
     import vtk
     from fluidcast.camera import save_camera
     from fluidcast.cli import fluidcast_binary, run_fluidcast
-    from fluidcast.images import read_png
+    from fluidcast.images import difference, read_png
     from fluidcast.transfer import tf_to_preset
 
     view.OrientationAxesVisibility = 0
@@ -121,19 +122,15 @@ def cli_comparison(out: Path):
                   "--error-tolerance", "off" if tol == 0 else repr(tol),
                   "--backend", "cpu", "-o", out / "cli.png", binary=binary)
     cli = 1e3 * (time.perf_counter() - t)
-    a_img, b_img = read_png(out / "paraview.png"), read_png(out / "cli.png")
-    diff = np.abs(a_img.astype(int) - b_img.astype(int)).max() if a_img.shape == b_img.shape \
-        else float("nan")
+    diff = difference(read_png(out / "paraview.png"), read_png(out / "cli.png"))
     print(f"same image: pvbatch still {still:.0f} ms, `fluidcast render` {cli:.0f} ms "
           f"(process wall time, file read included), still / CLI {still / cli:.2f}; "
-          f"max pixel difference {diff}/255 ({binary})")
+          f"max pixel difference {round(255 * diff['max_abs'])}/255 ({binary})")
 
 
-if a.cli:
-    import os
-    keep = os.environ.get("KEEP")
-    if keep:
-        cli_comparison(Path(keep))
-    else:
-        with tempfile.TemporaryDirectory() as d:
-            cli_comparison(Path(d))
+if a.cli and a.cli_out:
+    a.cli_out.mkdir(parents=True, exist_ok=True)
+    cli_comparison(a.cli_out)
+elif a.cli:
+    with tempfile.TemporaryDirectory() as d:
+        cli_comparison(Path(d))
