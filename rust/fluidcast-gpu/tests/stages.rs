@@ -325,6 +325,49 @@ fn strict_bound_holds_on_the_gpu() {
     );
 }
 
+/// The strict bound where a coarse sample stands for values a whole cell away (the field
+/// grows along the view, 64 depth samples per cell; `fluidcast_testkit::depth_ramp`): the
+/// GPU's plan adapts a third of the cells or more and stays within E_I. Without the coarse
+/// sample's term in `plan.wgsl`'s level bound it misses by more than 2 E_I.
+#[test]
+fn strict_bound_holds_along_a_depth_ramp_on_the_gpu() {
+    let Some(g) = gpu() else { return };
+    let p = fluidcast_testkit::depth_ramp(20);
+    for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
+        let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+        let mut cam = orbit(&p, azimuth, 3.0);
+        cam.parallel_projection = parallel;
+        cam.zoom(1.2);
+        let mut prm = params((96, 72), modes()[0].1);
+        prm.grid.depth_samples = 64;
+        let off = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive = PlanParams {
+            tolerance: Some(e),
+            ..Default::default()
+        }
+        .strict();
+        let r = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let (c, _) = fluidcast_image::compare(&off.image, &r.image, e).unwrap();
+        let st = r.stats.plan.unwrap();
+        let adapted = st.level_cells[1..].iter().sum::<u64>() as f64 / st.cells as f64;
+        let what = format!("alpha {alpha}, azimuth {azimuth}, parallel {parallel}, E_I {e}");
+        eprintln!(
+            "{what}: {adapted:.3} of the cells adapt, max abs {:.2e}",
+            c.max_abs
+        );
+        assert!(
+            adapted >= 0.3,
+            "{what}: only {adapted:.3} of the cells adapt"
+        );
+        assert!(c.max_abs > 0.0, "{what}: adapting changed nothing");
+        assert!(
+            c.max_abs <= e,
+            "{what}: strict max abs error {} above E_I",
+            c.max_abs
+        );
+    }
+}
+
 #[test]
 fn gpu_buffers_are_reused_across_frames() {
     let Some(g) = gpu() else { return };

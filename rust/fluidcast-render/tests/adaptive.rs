@@ -409,7 +409,8 @@ proptest! {
 /// ramp under a faint part of the transfer function, the other an oscillating field under an
 /// opaque part; looking along the oscillation, the bundles that see only the gentle half
 /// coarsen (15–40 % of all cells here) and change the image, and no pixel moves by more than
-/// E_I. (It does not yet catch a level bound without its coarse-sampling term: see issue 15.)
+/// E_I. (The depth-ramp test below is the one that catches a level bound without its
+/// coarse-sampling term.)
 #[test]
 fn strict_plan_adapts_a_real_share_within_e_i() {
     let mut p = radial(1.0 / 20.0);
@@ -449,5 +450,38 @@ fn strict_plan_adapts_a_real_share_within_e_i() {
         );
         assert!(m > 0.0, "view {v}, E_I = {e}: adapting changed nothing");
         assert!(m <= e, "view {v}, strict E_I = {e}: max abs error {m}");
+    }
+}
+
+/// The strict guarantee where a coarse sample stands for values far from its own
+/// ([`fluidcast_testkit::depth_ramp`]: the field grows along the view direction, 64 depth
+/// samples per cell): about half the cells coarsen and change the image, within E_I. A level
+/// bound without the coarse sample's term (`cell_bounds`' union) adapts as many cells but
+/// misses by 2.4 E_I here.
+#[test]
+fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
+    let p = fluidcast_testkit::depth_ramp(20);
+    for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
+        let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+        let cam = camera_for(&p, azimuth, 3.0, parallel);
+        let mut prm = params(96, 72, None);
+        prm.grid.depth_samples = 64;
+        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive = PlanParams {
+            tolerance: Some(e),
+            ..Default::default()
+        }
+        .strict();
+        let s = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let st = s.stats.plan.clone().unwrap();
+        let adapted = st.level_cells[1..].iter().sum::<u64>() as f64 / st.cells as f64;
+        let m = max_abs(&off.image, &s.image);
+        let what = format!("alpha {alpha}, azimuth {azimuth}, parallel {parallel}, E_I {e}");
+        assert!(
+            adapted >= 0.3,
+            "{what}: only {adapted:.3} of the cells adapt"
+        );
+        assert!(m > 0.0, "{what}: adapting changed nothing");
+        assert!(m <= e, "{what}: strict max abs error {m} above E_I");
     }
 }

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 
 use fluidcast_sph::Particles;
+use fluidcast_view::TransferFunction;
 
 /// Set to 1 (the test command does) to turn a missing `../shared/data` file into a test failure
 /// instead of a skip.
@@ -54,3 +55,49 @@ pub fn cloud(n: usize, seed: u32, radius: (f32, f32)) -> Particles {
     }
     p
 }
+
+/// A jittered `n`³ lattice filling the unit cube around the origin (support radius 2.5
+/// spacings, volume and mass one cell) whose value is its z coordinate: seen along z, the
+/// field changes along every ray and hardly across a bundle. Under a faint transfer function
+/// each depth sample's bound is narrow, so the strict plan coarsens, but a coarse sample
+/// stands for values up to a cell's depth away: the level bound must include the coarse
+/// sample's bound (a plan without that term adapts the same cells and misses by several E_I).
+pub fn depth_ramp(n: usize) -> Particles {
+    let mut rnd = rng(99);
+    let s = 1.0 / n as f32;
+    let mut p = Particles::default();
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                let x = [i, j, k].map(|c| (c as f32 + 0.5) * s - 0.5 + 0.2 * s * (rnd() - 0.5));
+                p.positions.push(x);
+                p.radii.push(2.5 * s);
+                p.volumes.push(s.powi(3));
+                p.masses.push(s.powi(3));
+                p.values.push(x[2]);
+            }
+        }
+    }
+    p
+}
+
+/// The transfer function for [`depth_ramp`]: Viridis over its values [−0.5, 0.5] with the
+/// constant opacity `alpha` per 0.5 world units (the strict tests use 0.01–0.02).
+pub fn depth_ramp_tf(alpha: f64) -> TransferFunction {
+    let mut tf = TransferFunction::preset("Viridis")
+        .expect("Viridis is a built-in preset")
+        .with_range(-0.5, 0.5)
+        .expect("a valid range");
+    tf.opacity = vec![(0.0, alpha), (1.0, alpha)];
+    tf.unit_distance = 0.5;
+    tf
+}
+
+/// The depth-ramp cases the strict tests run on the CPU and the GPU: (opacity, E_I, azimuth
+/// in degrees, parallel projection), each with 64 depth samples per cell.
+pub const DEPTH_RAMP_CASES: [(f64, f64, f64, bool); 4] = [
+    (0.01, 0.01, 5.0, false),
+    (0.01, 0.01, -10.0, false),
+    (0.01, 0.01, 5.0, true),
+    (0.02, 0.02, 5.0, false),
+];
