@@ -76,6 +76,7 @@ fn compare(a: CompareArgs) -> Result<()> {
         out!(
             "{}",
             serde_json::json!({"max_abs": c.max_abs, "rmse": c.rmse, "frac_above": c.frac_above, "tolerance": c.tolerance,
+                               "depth_max_abs": json_number(c.depth_max_abs), "depth_frac_differ": c.depth_frac_differ,
                                "width": ia.width, "height": ia.height})
         );
     } else {
@@ -86,8 +87,22 @@ fn compare(a: CompareArgs) -> Result<()> {
             c.tolerance,
             c.frac_above * 100.0
         );
+        out!("max depth difference: {:.6} world units", c.depth_max_abs);
+        out!(
+            "pixels whose depth differs: {:.4} %",
+            c.depth_frac_differ * 100.0
+        );
     }
     Ok(())
+}
+
+/// A JSON number, or the string "inf" for an infinite one (JSON has no infinity).
+fn json_number(x: f64) -> serde_json::Value {
+    if x.is_finite() {
+        x.into()
+    } else {
+        "inf".into()
+    }
 }
 
 /// The error and its causes on one line, each cause once: a library error that already

@@ -290,7 +290,8 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
-/// Differences between two images over the RGBA channels (values in [0, 1]).
+/// Differences between two images over the RGBA channels (values in [0, 1]) and the depth
+/// channel (view depth in world units, `+∞` where a ray never became half opaque).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Comparison {
     /// Largest absolute channel difference.
@@ -301,6 +302,20 @@ pub struct Comparison {
     pub frac_above: f64,
     /// The tolerance used for `frac_above`.
     pub tolerance: f64,
+    /// Largest depth difference (world units); `+∞` where one image has a depth and the
+    /// other none, 0 where neither has one.
+    pub depth_max_abs: f64,
+    /// Share of pixels (0..1) whose depths differ at all.
+    pub depth_frac_differ: f64,
+}
+
+/// |a − b| for two depths, `+∞` when exactly one is infinite, 0 when both are.
+fn depth_difference(a: f32, b: f32) -> f64 {
+    match (a.is_finite(), b.is_finite()) {
+        (true, true) => (a as f64 - b as f64).abs(),
+        (false, false) if a == b => 0.0,
+        _ => f64::INFINITY,
+    }
 }
 
 /// Compares two images channel by channel; `diff` (if asked) gets |a − b| per pixel as an
@@ -328,12 +343,22 @@ pub fn compare(a: &Image, b: &Image, tolerance: f64) -> Result<(Comparison, Imag
         diff.rgba[i] = [v, v, v, 1.0];
     }
     let n = a.rgba.len().max(1);
+    let dz = a
+        .depth
+        .iter()
+        .zip(&b.depth)
+        .map(|(&p, &q)| depth_difference(p, q));
+    let (depth_max_abs, depth_differ) = dz.fold((0.0f64, 0usize), |(m, k), d| {
+        (m.max(d), k + usize::from(d != 0.0))
+    });
     Ok((
         Comparison {
             max_abs,
             rmse: (sq / (4 * n) as f64).sqrt(),
             frac_above: above as f64 / n as f64,
             tolerance,
+            depth_max_abs,
+            depth_frac_differ: depth_differ as f64 / n as f64,
         },
         diff,
     ))
@@ -360,6 +385,16 @@ mod tests {
         let (cmp, _) = compare(&a, &c, 0.05).unwrap();
         assert!((cmp.max_abs - 0.1).abs() < 1e-7);
         assert!((cmp.frac_above - 1.0 / 15.0).abs() < 1e-12);
+        assert_eq!((cmp.depth_max_abs, cmp.depth_frac_differ), (0.0, 0.0));
+        // Depth is compared too: a moved depth, and a depth where the other image has none.
+        c.depth[k] = 3.0;
+        let (cmp, _) = compare(&a, &c, 0.05).unwrap();
+        assert_eq!(cmp.depth_max_abs, 0.5);
+        assert!((cmp.depth_frac_differ - 1.0 / 15.0).abs() < 1e-12);
+        c.depth[1] = 7.0;
+        let (cmp, _) = compare(&c, &a, 0.05).unwrap();
+        assert_eq!(cmp.depth_max_abs, f64::INFINITY);
+        assert!((cmp.depth_frac_differ - 2.0 / 15.0).abs() < 1e-12);
         let png = dir.join("a.png");
         // Over black, premultiplied 0.5 is stored as 128 (VTK's convention: no curve) and
         // as 188 with the sRGB curve.

@@ -206,6 +206,11 @@ fn off_equals_reference_at_the_same_samples() {
         // The grid renderer's lane loops (span.rs) do the reference's arithmetic in its order,
         // so the images are identical, not merely close.
         assert!(m == 0.0, "{parallel} {field:?} {kernel:?}: max abs {m}");
+        let dz = compare(&r, &a.image, 1.0).unwrap().0.depth_max_abs;
+        assert!(
+            dz == 0.0,
+            "{parallel} {field:?} {kernel:?}: depth differs by {dz}"
+        );
         assert_eq!(rs.samples, a.stats.samples, "same samples composited");
     }
 }

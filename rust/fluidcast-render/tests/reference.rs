@@ -5,19 +5,21 @@ use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 
 /// Independent oracle: world-space rays from the camera, every particle at every sample.
+/// Per pixel: premultiplied RGBA and the depth of the first sample after which the ray's
+/// transmittance is below 1/2 (`+∞` if it never is).
 fn brute_force(
     p: &Particles,
     cam: &Camera,
     tf: &TransferFunction,
     prm: &RenderParams,
     depths: &SampleDepths,
-) -> Vec<[f64; 4]> {
+) -> Vec<([f64; 4], f64)> {
     let f = cam.frame(prm.width, prm.height).unwrap();
     let mut out = Vec::new();
     for j in 0..prm.height {
         for i in 0..prm.width {
             let (o, d) = f.ray(i, j);
-            let (mut c, mut t) = ([0.0f64; 3], 1.0f64);
+            let (mut c, mut t, mut half) = ([0.0f64; 3], 1.0f64, f64::INFINITY);
             for k in 0..depths.len() {
                 let x = o + d * depths.z[k];
                 let (mut wa, mut ws, mut wm) = (0.0, 0.0, 0.0);
@@ -46,8 +48,11 @@ fn brute_force(
                     c[m] += t * a * rgb[m];
                 }
                 t *= 1.0 - a;
+                if t < 0.5 && half.is_infinite() {
+                    half = depths.z[k];
+                }
             }
-            out.push([c[0], c[1], c[2], 1.0 - t]);
+            out.push(([c[0], c[1], c[2], 1.0 - t], half));
         }
     }
     out
@@ -82,12 +87,16 @@ fn reference_equals_brute_force() {
         .unwrap();
         let bf = brute_force(&p, &cam, &tf, &prm, &depths);
         let mut max = 0.0f64;
-        for (a, b) in img.rgba.iter().zip(&bf) {
+        for (a, (b, _)) in img.rgba.iter().zip(&bf) {
             for k in 0..4 {
                 max = max.max((a[k] as f64 - b[k]).abs());
             }
         }
         assert!(max < 1e-5, "parallel={parallel} {field:?}: max abs {max}");
+        // Depth: the same sample plane (as f32), and some pixels have one.
+        let depth_ok = img.depth.iter().zip(&bf).all(|(&z, &(_, h))| z == h as f32);
+        assert!(depth_ok, "parallel={parallel} {field:?}: depth differs");
+        assert!(img.depth.iter().filter(|z| z.is_finite()).count() > 10);
         assert!(img.rgba.iter().any(|p| p[3] > 0.05), "nothing rendered");
     }
 }
@@ -119,6 +128,16 @@ fn uniform_slab_transmittance_is_exponential() {
     // Emission: constant colour c with opacity: premultiplied colour = c·(1 − T).
     let c = tf.eval(0.7).0[0];
     assert!((img.rgba[0][0] as f64 - c * (1.0 - t)).abs() < 1e-5);
+    // Depth: the ray enters the support at view depth 3 − (0.4 + H) and is half transparent
+    // ln 2 / σ later; the image holds the front of the step that crosses 1/2, and the first
+    // step may start up to one step behind the support's edge (steps are 1e-4 long here).
+    let enter = 3.0 - ((nz - 1) as f64 * spacing as f64 + h as f64);
+    let half = enter + std::f64::consts::LN_2 / sigma;
+    let z = img.depth[0] as f64;
+    assert!(
+        (z - half).abs() <= 1e-3,
+        "depth {z}, half transparent at {half}"
+    );
 }
 
 #[test]
