@@ -235,3 +235,83 @@ fn gpu_backend_from_the_command_line() {
     );
     assert!(!ok && err.contains("'no-such-gpu'"), "{err}");
 }
+
+/// An ASCII .vtu of a jittered 6³ lattice of particles at `offset` (spacing 0.1) with the
+/// point array `value` = `scale` · i / 8 for the i-th lattice column along x (exact in f32).
+fn lattice_vtu(offset: [f32; 3], scale: f32) -> String {
+    let (mut pts, mut vals) = (String::new(), String::new());
+    for i in 0..6 {
+        for j in 0..6 {
+            for k in 0..6 {
+                let x = [i, j, k].map(|c| c as f32 * 0.1);
+                let x = [0, 1, 2].map(|c| x[c] + offset[c] + 0.01 * ((i * j + k) % 3) as f32);
+                pts += &format!("{} {} {} ", x[0], x[1], x[2]);
+                vals += &format!("{} ", scale * i as f32 / 8.0);
+            }
+        }
+    }
+    format!(
+        r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
+<UnstructuredGrid><Piece NumberOfPoints="216" NumberOfCells="0"><PointData>
+<DataArray type="Float32" Name="value" format="ascii">{vals}</DataArray></PointData>
+<Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">{pts}</DataArray></Points>
+<Cells></Cells></Piece></UnstructuredGrid></VTKFile>"#
+    )
+}
+
+/// A series renders each frame's own particles under the first frame's camera and colour
+/// range: frame 1 of the series equals frame 1's file rendered alone with frame 0's saved
+/// camera and value range, and differs from frame 0 and from frame 1 under its own automatic
+/// view.
+#[test]
+fn series_frames_render_their_own_particles_under_the_first_frames_view() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    std::fs::write(p("a.vtu"), lattice_vtu([0.0; 3], 1.0)).unwrap();
+    std::fs::write(p("b.vtu"), lattice_vtu([0.2, -0.1, 0.05], 3.0)).unwrap();
+    std::fs::write(
+        p("s.pvd"),
+        r#"<?xml version="1.0"?><VTKFile type="Collection" version="0.1"><Collection>
+<DataSet timestep="0" file="a.vtu"/><DataSet timestep="1" file="b.vtu"/></Collection></VTKFile>"#,
+    )
+    .unwrap();
+    let common = [
+        "--array",
+        "value",
+        "--size",
+        "40x30",
+        "--support-radius",
+        "0.2",
+        "--opacity-unit-distance",
+        "0.2",
+    ];
+    let render = |input: &str, out: &str, extra: &[&str]| {
+        let (i, o) = (p(input), p(out));
+        let mut args = vec!["render", i.to_str().unwrap(), "-o", o.to_str().unwrap()];
+        args.extend_from_slice(&common);
+        args.extend_from_slice(extra);
+        let (ok, _, err) = run(&args);
+        assert!(ok, "{args:?}: {err}");
+    };
+    let cam = p("cam.json");
+    render(
+        "s.pvd",
+        "f_%03d.exr",
+        &["--frames", "0:2", "--save-camera", cam.to_str().unwrap()],
+    );
+    render("a.vtu", "a.exr", &[]);
+    // a.vtu's values span [0, 5/8]: the range the series keeps.
+    let range = "0,0.625";
+    render(
+        "b.vtu",
+        "b_fixed.exr",
+        &["--camera", cam.to_str().unwrap(), "--range", range],
+    );
+    render("b.vtu", "b_auto.exr", &[]);
+    render("a.vtu", "a_range.exr", &["--range", range]);
+    assert_eq!(compare(&p("f_000.exr"), &p("a.exr")), (0.0, 0.0));
+    assert_eq!(compare(&p("a.exr"), &p("a_range.exr")).0, 0.0, "range");
+    assert_eq!(compare(&p("f_001.exr"), &p("b_fixed.exr")), (0.0, 0.0));
+    assert!(compare(&p("f_001.exr"), &p("f_000.exr")).0 > 0.1);
+    assert!(compare(&p("f_001.exr"), &p("b_auto.exr")).0 > 0.1);
+}
