@@ -15,14 +15,24 @@ mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 export FLUIDCAST_REQUIRE_DATA="${FLUIDCAST_REQUIRE_DATA:-1}"
 bash scripts/setup_system.sh
 bash scripts/setup_python.sh
+# Test reports of this run only (scripts/check_test_reports.py reads them at the end).
+rm -rf build/reports
+mkdir -p build/reports
 cargo build --bin fluidcast
 # setup_system.sh installed lavapipe, so the GPU tests must find an adapter, not skip.
 FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
-.venv/bin/ruff check python tests examples
-.venv/bin/python -m pytest -q tests/python
+.venv/bin/ruff check python tests examples scripts
+.venv/bin/python -m pytest -q tests/python --junitxml=build/reports/pytest-python.xml
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh
-ctest --test-dir build --output-on-failure
+ctest --test-dir build --output-on-failure --output-junit reports/ctest.xml
 # The package `fluidcast` (mapper + pyvista helper) in a pyvista Plotter, on ParaView's VTK.
 bash scripts/setup_pyvista.sh
-tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista
+tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista \
+  --junitxml=build/reports/pytest-pyvista.xml
+# A skipped test, or a ctest test that CMake did not register (a program not found), fails the
+# test command instead of passing quietly (skips are only listed with FLUIDCAST_REQUIRE_DATA=0).
+skips=()
+[ "$FLUIDCAST_REQUIRE_DATA" = 1 ] || skips=(--allow-skips)
+.venv/bin/python scripts/check_test_reports.py --expect tests/vtk/expected_ctest.txt "${skips[@]}" \
+  build/reports/pytest-python.xml build/reports/ctest.xml build/reports/pytest-pyvista.xml
