@@ -4,6 +4,10 @@
 //       renders DATA with the mapper and with `fluidcast render` for the same camera,
 //       transfer function and error tolerance (a number or "off"); the two 8-bit images must
 //       agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive.
+//   TestFluidCastMapper properties DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI
+//       sets SupportRadius, Kernel, VectorMode/VectorComponent and ErrorTolerance away from
+//       their defaults: each must change the image (or the samples) as the CLI's matching
+//       option does.
 //   TestFluidCastMapper depth DATA.vtu ARRAY OUTDIR
 //       an opaque box in front of, behind and cutting through the particles: the mapper must
 //       respect the depth buffer (fails if it ignored it).
@@ -44,6 +48,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -281,6 +286,138 @@ Diff Compare(const Image& a, const Image& b)
   return d;
 }
 
+/**
+ * The mapper properties a render sets, each mirrored by a `fluidcast render` option: the
+ * defaults are the mapper's own.
+ */
+struct Settings
+{
+  std::string tolerance = "0.004"; // a number, or "off" (the mapper's 0)
+  double supportRadius = 0;        // > 0: SupportRadius and --support-radius
+  std::string kernel;              // non-empty: Kernel and --kernel
+  int component = -1;              // >= 0: VectorMode COMPONENT and ARRAY:component
+  double Tolerance() const { return tolerance == "off" ? 0.0 : std::stod(tolerance); }
+  /** Largest channel difference (of 255) allowed between the mapper and the CLI. */
+  int Allowed() const
+  {
+    // Full rate: both sample the same depths; the mapper's transfer function is VTK's
+    // 1024-entry table of the same nodes, so only 8-bit rounding is left (2/255 allowed).
+    // Adaptive: each image is within E_I of full rate and the two plans may choose
+    // differently (their transfer-function bounds come from different control points), so
+    // 2 E_I plus one level of rounding.
+    const double e = Tolerance();
+    return e > 0 ? static_cast<int>(std::ceil(2 * e * 255)) + 1 : 2;
+  }
+};
+
+/** One view rendered by the mapper in a VTK window and by the CLI, with its sample counts. */
+struct Pair
+{
+  Image mapper, cli;
+  long long mapperSamples = 0, cliSamples = 0;
+  double maxRadius = 0; // the mapper's largest support radius (world units)
+};
+
+/** The "samples" count from `fluidcast render --stats` JSON (-1 if absent). */
+long long StatsSamples(const std::string& path)
+{
+  std::ifstream f(path);
+  std::stringstream text;
+  text << f.rdbuf();
+  const std::string s = text.str();
+  const size_t k = s.find("\"samples\":");
+  return k == std::string::npos ? -1 : std::atoll(s.c_str() + k + 10);
+}
+
+/**
+ * Renders DATA's ARRAY with the mapper (camera azimuth 30, elevation 20) and the same view,
+ * transfer function and settings with `fluidcast render` into OUT (mapper.png, cli.png);
+ * false with a FAIL line when either did not render.
+ */
+bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::string& array,
+  const std::string& out, const std::string& cli, const Settings& st, Pair& p)
+{
+  vtkDataArray* a = ug->GetPointData()->GetArray(array.c_str());
+  if (!a)
+  {
+    std::cerr << "FAIL: no array " << array << "\n";
+    return false;
+  }
+  double range[2];
+  a->GetRange(range, st.component); // -1: magnitude
+  TF tf = MakeTF(range[0], range[1]);
+  const double unit = 0.1;
+
+  Scene s;
+  s.ren->SetBackground(1, 1, 1);
+  s.Show(ug, array, Property(tf, unit));
+  s.mapper->SetErrorTolerance(st.Tolerance());
+  s.mapper->SetSupportRadius(st.supportRadius);
+  if (!st.kernel.empty())
+  {
+    s.mapper->SetKernel(st.kernel.c_str());
+  }
+  if (st.component >= 0)
+  {
+    s.mapper->SetVectorMode(1);
+    s.mapper->SetVectorComponent(st.component);
+  }
+  double b[6];
+  s.mapper->GetBounds(b);
+  SetupCamera(s, b);
+  s.win->Render();
+  p.mapper = Grab(s.win);
+  p.mapperSamples = s.mapper->GetLastSamples();
+  p.maxRadius = s.mapper->GetLastMaxRadius();
+  std::filesystem::create_directories(out);
+  WritePng(p.mapper, out + "/mapper.png");
+  std::cout << "mapper: " << s.mapper->GetLastParticleCount() << " particles, H = "
+            << s.mapper->GetLastMaxRadius() << ", " << p.mapperSamples << " samples, "
+            << s.mapper->GetLastRenderMilliseconds() << " ms\n";
+
+  WriteCamera(s.ren->GetActiveCamera(), out + "/camera.json");
+  WritePreset(tf, out + "/tf.json");
+  std::ostringstream cmd;
+  cmd.precision(17);
+  cmd << "\"" << cli << "\" render \"" << data << "\" --array " << array << ":"
+      << (st.component >= 0 ? std::to_string(st.component) : "mag") << " --tf \"" << out
+      << "/tf.json\" --range " << range[0] << "," << range[1] << " --camera \"" << out
+      << "/camera.json\" --size " << W << "x" << H << " --opacity-unit-distance " << unit
+      << " --background 1,1,1 --error-tolerance " << st.tolerance << " --stats \"" << out
+      << "/stats.json\" -o \"" << out << "/cli.png\"";
+  if (st.supportRadius > 0)
+  {
+    cmd << " --support-radius " << st.supportRadius;
+  }
+  if (!st.kernel.empty())
+  {
+    cmd << " --kernel " << st.kernel;
+  }
+  std::cout << cmd.str() << "\n";
+  if (std::system(cmd.str().c_str()) != 0)
+  {
+    std::cerr << "FAIL: fluidcast render failed\n";
+    return false;
+  }
+  p.cliSamples = StatsSamples(out + "/stats.json");
+  vtkNew<vtkPNGReader> pr;
+  pr->SetFileName((out + "/cli.png").c_str());
+  pr->Update();
+  p.cli = FromImageData(pr->GetOutput());
+  if (p.cli.w != p.mapper.w || p.cli.h != p.mapper.h)
+  {
+    std::cerr << "FAIL: sizes differ\n";
+    return false;
+  }
+  const size_t drawn = Drawn(p.mapper);
+  if (drawn < static_cast<size_t>(W * H / 20))
+  {
+    std::cerr << "FAIL: the mapper drew almost nothing (" << drawn << " pixels)\n";
+    return false;
+  }
+  return true;
+}
+
 int Window(const std::string& data, const std::string& array, const std::string& out,
   const std::string& cli, const std::string& tolerance)
 {
@@ -289,73 +426,91 @@ int Window(const std::string& data, const std::string& array, const std::string&
     return MissingData(data);
   }
   auto ug = Read(data);
-  vtkDataArray* a = ug->GetPointData()->GetArray(array.c_str());
-  if (!a)
+  Settings st;
+  st.tolerance = tolerance;
+  Pair p;
+  if (!RenderPair(ug, data, array, out, cli, st, p))
   {
-    std::cerr << "no array " << array << "\n";
     return 1;
   }
-  double range[2];
-  a->GetRange(range, -1); // magnitude
-  TF tf = MakeTF(range[0], range[1]);
-  const double unit = 0.1;
-
-  Scene s;
-  s.ren->SetBackground(1, 1, 1);
-  s.Show(ug, array, Property(tf, unit));
-  const double e = tolerance == "off" ? 0.0 : std::stod(tolerance);
-  s.mapper->SetErrorTolerance(e);
-  double b[6];
-  s.mapper->GetBounds(b);
-  SetupCamera(s, b);
-  s.win->Render();
-  Image ours = Grab(s.win);
-  WritePng(ours, out + "/mapper.png");
-  std::cout << "mapper: " << s.mapper->GetLastParticleCount() << " particles, H = "
-            << s.mapper->GetLastMaxRadius() << ", " << s.mapper->GetLastSamples()
-            << " samples, " << s.mapper->GetLastRenderMilliseconds() << " ms\n";
-
-  WriteCamera(s.ren->GetActiveCamera(), out + "/camera.json");
-  WritePreset(tf, out + "/tf.json");
-  std::ostringstream cmd;
-  cmd.precision(17);
-  cmd << "\"" << cli << "\" render \"" << data << "\" --array " << array << ":mag --tf \"" << out
-      << "/tf.json\" --range " << range[0] << "," << range[1] << " --camera \"" << out
-      << "/camera.json\" --size " << W << "x" << H << " --opacity-unit-distance " << unit
-      << " --background 1,1,1 --error-tolerance " << tolerance << " -o \"" << out
-      << "/cli.png\"";
-  std::cout << cmd.str() << "\n";
-  if (std::system(cmd.str().c_str()) != 0)
-  {
-    std::cerr << "FAIL: fluidcast render failed\n";
-    return 1;
-  }
-  vtkNew<vtkPNGReader> pr;
-  pr->SetFileName((out + "/cli.png").c_str());
-  pr->Update();
-  Image theirs = FromImageData(pr->GetOutput());
-  if (theirs.w != ours.w || theirs.h != ours.h)
-  {
-    std::cerr << "FAIL: sizes differ\n";
-    return 1;
-  }
-  Diff d = Compare(ours, theirs);
-  const size_t drawn = Drawn(ours);
+  Diff d = Compare(p.mapper, p.cli);
   std::cout << "mapper vs CLI: max abs " << d.max << "/255, mean " << d.mean << "/255, "
-            << d.above2 << " channels above 2/255; " << drawn << " pixels drawn\n";
-  if (drawn < static_cast<size_t>(W * H / 20))
+            << d.above2 << " channels above 2/255; allowed: " << st.Allowed() << "/255\n";
+  return d.max <= st.Allowed() ? 0 : 1;
+}
+
+/**
+ * Each property set away from its default changes the image, and the mapper follows it as
+ * the CLI's matching option does: the mapper agrees with the CLI render that uses the same
+ * non-default value, and that CLI render differs from the mapper's default image by more
+ * than the agreement allows (so a mapper that ignored the property would fail). The error
+ * tolerance is checked by its sample counts: at full rate (ErrorTolerance 0) and at E_I = 0.05
+ * the mapper and the CLI composite exactly the same samples, and E_I = 0.05 fewer.
+ */
+int Properties(const std::string& data, const std::string& array, const std::string& out,
+  const std::string& cli)
+{
+  if (!Exists(data))
   {
-    std::cerr << "FAIL: the mapper drew almost nothing\n";
+    return MissingData(data);
+  }
+  auto ug = Read(data);
+  // Full rate (2/255 agreement) except where the tolerance itself is tested: the kernel's
+  // shape moves this smooth field's image by only 5/255.
+  Settings base;
+  base.tolerance = "off";
+  Pair def;
+  if (!RenderPair(ug, data, array, out + "/default", cli, base, def))
+  {
     return 1;
   }
-  // Full rate: both sample the same depths; the mapper's transfer function is VTK's
-  // 1024-entry table of the same nodes, so only 8-bit rounding is left (2/255 allowed).
-  // Adaptive: each image is within E_I of full rate and the two plans may choose differently
-  // (their transfer-function bounds come from different control points), so 2 E_I plus one
-  // level of rounding.
-  const int allowed = e > 0 ? static_cast<int>(std::ceil(2 * e * 255)) + 1 : 2;
-  std::cout << "allowed: " << allowed << "/255\n";
-  return d.max <= allowed ? 0 : 1;
+  int failures = 0;
+  auto check = [&](const std::string& name, const Settings& st) -> Pair
+  {
+    Pair p;
+    if (!RenderPair(ug, data, array, out + "/" + name, cli, st, p))
+    {
+      ++failures;
+      return p;
+    }
+    const Diff agree = Compare(p.mapper, p.cli);
+    const Diff moved = Compare(def.mapper, p.cli);
+    std::cout << name << ": mapper vs CLI max " << agree.max << "/255 (allowed "
+              << st.Allowed() << "); default mapper vs this CLI max " << moved.max << "/255\n";
+    if (agree.max > st.Allowed())
+    {
+      std::cerr << "FAIL: " << name << ": the mapper does not follow the CLI\n";
+      ++failures;
+    }
+    if (moved.max <= st.Allowed())
+    {
+      std::cerr << "FAIL: " << name << ": the setting does not change the image enough to test\n";
+      ++failures;
+    }
+    return p;
+  };
+  Settings radius = base;
+  radius.supportRadius = 1.6 * def.maxRadius;
+  check("support_radius", radius);
+  Settings kernel = base;
+  kernel.kernel = "gaussian";
+  check("kernel", kernel);
+  Settings component = base;
+  component.component = 2;
+  check("vector_component", component);
+  Settings coarse;
+  coarse.tolerance = "0.05";
+  Pair p1;
+  const bool ok = RenderPair(ug, data, array, out + "/tolerance_0.05", cli, coarse, p1);
+  std::cout << "samples: off mapper " << def.mapperSamples << ", CLI " << def.cliSamples
+            << "; E_I 0.05 mapper " << p1.mapperSamples << ", CLI " << p1.cliSamples << "\n";
+  if (!ok || def.mapperSamples != def.cliSamples || p1.mapperSamples != p1.cliSamples ||
+    p1.mapperSamples >= def.mapperSamples)
+  {
+    std::cerr << "FAIL: ErrorTolerance does not set the samples as --error-tolerance does\n";
+    ++failures;
+  }
+  return failures ? 1 : 0;
 }
 
 int Depth(const std::string& data, const std::string& array, const std::string& out)
@@ -629,6 +784,10 @@ int main(int argc, char* argv[])
   {
     return Window(argv[2], argv[3], argv[4], argv[5], argv[6]);
   }
+  if (mode == "properties" && argc == 6)
+  {
+    return Properties(argv[2], argv[3], argv[4], argv[5]);
+  }
   if (mode == "depth" && argc == 5)
   {
     return Depth(argv[2], argv[3], argv[4]);
@@ -641,7 +800,8 @@ int main(int argc, char* argv[])
   {
     return Backends(argv[2], argv[3], argv[4]);
   }
-  std::cerr << "usage: TestFluidCastMapper window DATA ARRAY OUTDIR CLI TOLERANCE | depth DATA ARRAY "
-               "OUTDIR | bad DATA | backend DATA ARRAY OUTDIR\n";
+  std::cerr << "usage: TestFluidCastMapper window DATA ARRAY OUTDIR CLI TOLERANCE | properties "
+               "DATA ARRAY OUTDIR CLI | depth DATA ARRAY OUTDIR | bad DATA | backend DATA ARRAY "
+               "OUTDIR\n";
   return 2;
 }
