@@ -3,11 +3,16 @@ representation, save a screenshot and compare it with `fluidcast render` for the
 colour map and opacity function.
 
     pvbatch pvbatch_fluidcast.py PLUGIN.so DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE [BACKEND]
+            [--properties]
 
 TOLERANCE is the representation's error tolerance (a number; 0 = full rate). The images must
 agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive (as the VTK window
 test). BACKEND (Auto, CPU or GPU; default Auto) sets FluidCastBackend; with GPU the view is
-also rendered with CPU and the two screenshots must agree within 2/255. Exit code 0 pass,
+also rendered with CPU and the two screenshots must agree within 2/255. --properties then
+sets FluidCastSupportRadius, FluidCastKernel and a vector component (ColorBy ... "Z") away
+from their defaults: each screenshot must agree with the CLI render that uses the same
+option, and that CLI render must differ from the default screenshot by more than the
+agreement allows (so a property the representation ignored would fail). Exit code 0 pass,
 1 fail, 77 skipped (data not present).
 """
 import json
@@ -31,8 +36,10 @@ from paraview.simple import (
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
-plugin, data, array, out, cli, tolerance = sys.argv[1:7]
-backend = sys.argv[7] if len(sys.argv) > 7 else "Auto"
+args = [a for a in sys.argv[1:] if a != "--properties"]
+properties = "--properties" in sys.argv
+plugin, data, array, out, cli, tolerance = args[:6]
+backend = args[6] if len(args) > 6 else "Auto"
 tolerance = float(tolerance)
 if not os.path.exists(data):
     if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
@@ -86,17 +93,25 @@ with open(os.path.join(out, "camera.json"), "w") as f:
                "view_up": list(cam.GetViewUp()), "view_angle": cam.GetViewAngle(),
                "parallel_projection": bool(cam.GetParallelProjection()),
                "parallel_scale": cam.GetParallelScale()}, f)
-with open(os.path.join(out, "tf.json"), "w") as f:
-    json.dump([{"Name": "from ParaView", "ColorSpace": "RGB", "RGBPoints": list(lut.RGBPoints),
-                "Points": list(pwf.Points)}], f)
+
+
+def cli_render(png, component="mag", extra=()):
+    """`fluidcast render` of the view (camera, colour map, range of the shown component)."""
+    with open(os.path.join(out, "tf.json"), "w") as f:
+        json.dump([{"Name": "from ParaView", "ColorSpace": "RGB",
+                    "RGBPoints": list(lut.RGBPoints), "Points": list(pwf.Points)}], f)
+    cmd = [cli, "render", data, "--array", f"{array}:{component}", "--tf",
+           os.path.join(out, "tf.json"), "--range", f"{lut.RGBPoints[0]!r},{lut.RGBPoints[-4]!r}",
+           "--camera", os.path.join(out, "camera.json"), "--size", f"{W}x{H}",
+           "--opacity-unit-distance", "0.1", "--background", "1,1,1",
+           "--error-tolerance", "off" if tolerance <= 0 else str(tolerance), "--backend", "cpu",
+           *extra, "-o", png]
+    print(" ".join(cmd))
+    subprocess.run(cmd, check=True)
+
+
 cli_png = os.path.join(out, "cli.png")
-cmd = [cli, "render", data, "--array", f"{array}:mag", "--tf", os.path.join(out, "tf.json"),
-       "--range", f"{lo!r},{hi!r}", "--camera", os.path.join(out, "camera.json"),
-       "--size", f"{W}x{H}", "--opacity-unit-distance", "0.1", "--background", "1,1,1",
-       "--error-tolerance", "off" if tolerance <= 0 else str(tolerance), "--backend", "cpu",
-       "-o", cli_png]
-print(" ".join(cmd))
-subprocess.run(cmd, check=True)
+cli_render(cli_png)
 
 
 def read(path):
@@ -138,6 +153,46 @@ if backend == "GPU":
 if drawn < W * H // 20:
     print("FAIL: the representation drew almost nothing")
     status = 1
+
+
+def screenshot(name):
+    Render(view)
+    path = os.path.join(out, f"paraview_{name}.png")
+    SaveScreenshot(path, view, ImageResolution=[W, H], TransparentBackground=0)
+    return path
+
+
+def property_follows_cli(name, component="mag", extra=()):
+    """The screenshot agrees with the CLI under the same option; the default does not."""
+    shot_p = read(screenshot(name))
+    cli_p = os.path.join(out, f"cli_{name}.png")
+    cli_render(cli_p, component, extra)
+    theirs = read(cli_p)
+    agree, moved = int(abs(shot_p - theirs).max()), int(abs(a - theirs).max())
+    print(f"{name}: ParaView vs CLI max {agree}/255 (allowed {allowed}); "
+          f"default screenshot vs this CLI max {moved}/255")
+    ok = agree <= allowed and moved > allowed
+    if not ok:
+        print(f"FAIL: {name}: the representation does not follow the CLI's option")
+    return ok
+
+
+if properties:
+    # Each property alone, then back to its default.
+    h = float(display.GetProperty("FluidCastSupportRadius").GetData() or 0.0)
+    display.FluidCastSupportRadius = 0.064
+    status = status or (0 if property_follows_cli("support_radius", extra=(
+        "--support-radius", "0.064")) else 1)
+    display.FluidCastSupportRadius = h
+    display.FluidCastKernel = "Gaussian"
+    status = status or (0 if property_follows_cli("kernel", extra=("--kernel", "gaussian"))
+                        else 1)
+    display.FluidCastKernel = "Cubic spline"
+    ColorBy(display, ("POINTS", array, "Z"))
+    zlo, zhi = reader.PointData[array].GetRange(2)
+    lut.RescaleTransferFunction(zlo, zhi)
+    pwf.RescaleTransferFunction(zlo, zhi)
+    status = status or (0 if property_follows_cli("vector_component", component="2") else 1)
 # Leave without ParaView's teardown: under Xvfb, Debian's pvbatch dies with "GLXBadContext"
 # while destroying its window at exit, which would turn a pass into a failure.
 sys.stdout.flush()
