@@ -168,10 +168,10 @@ fn gpu_matches_cpu_on_the_shared_datasets() {
             };
             let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
             eprintln!("{data} {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
-            // As above: only support-edge samples differ; here a step may be more opaque than
-            // in the synthetic scene, so the bound is on how many pixels and on the RMSE.
+            // As above: only support-edge samples differ, in at most 0.1 % of the pixels, none
+            // by more than 0.05 (one step's opacity; 6e-3 measured).
             assert!(
-                frac <= 1e-3 && rmse <= 1e-3,
+                max <= 0.05 && frac <= 1e-3 && rmse <= 1e-3,
                 "{data} {name}: max {max}, RMSE {rmse}, {frac} above 1e-3"
             );
         }

@@ -220,9 +220,9 @@ fn gpu_ray_caster_on_the_cpu_plan_matches_the_cpu_caster() {
                 s.name, c.max_abs, c.rmse, c.frac_above
             );
             // Same plan, same summation order; f32 against f64, and samples at a support's
-            // edge (see gpu_vs_cpu.rs).
+            // edge (see gpu_vs_cpu.rs): at most 0.1 % of the pixels, none by more than 0.05.
             assert!(
-                c.frac_above <= 1e-3 && c.rmse <= 1e-3,
+                c.max_abs <= 0.05 && c.frac_above <= 1e-3 && c.rmse <= 1e-3,
                 "{} {mode}: max {}, RMSE {}, {} above 1e-3",
                 s.name,
                 c.max_abs,
