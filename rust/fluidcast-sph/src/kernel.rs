@@ -267,4 +267,55 @@ mod tests {
         let vtk = 1.0 / (PI * h * h * h) * (1.0 - 1.5 * q * q + 0.75 * q * q * q);
         assert!((Kernel::CubicSpline.eval(r, 2.0 * h) - vtk).abs() < 1e-9 * vtk);
     }
+
+    /// Each kernel against its published form in the smoothing length h (H = factor · h),
+    /// written out here independently of `eval`: PySPH's WendlandQuintic and
+    /// WendlandQuinticC4 (q = r/h ≤ 2), VTK's vtkSPHQuinticKernel (q ≤ 3), Müller et al.'s poly6
+    /// in H, and the Gaussian's shape exp(−r²/2σ²), σ = H/3, relative to its centre.
+    #[test]
+    fn every_kernel_has_its_published_shape() {
+        let h = 0.37;
+        for i in 0..200 {
+            let r = i as f64 / 200.0 * 2.0 * h;
+            let q = r / h;
+            let c2 = 21.0 / (16.0 * PI * h.powi(3)) * (1.0 - q / 2.0).powi(4) * (2.0 * q + 1.0);
+            let c4 = 495.0 / (256.0 * PI * h.powi(3))
+                * (1.0 - q / 2.0).powi(6)
+                * (35.0 / 12.0 * q * q + 3.0 * q + 1.0);
+            let big = 2.0 * h;
+            let poly6 = 315.0 / (64.0 * PI * big.powi(9)) * (big * big - r * r).powi(3);
+            for (k, want) in [
+                (Kernel::WendlandC2, c2),
+                (Kernel::WendlandC4, c4),
+                (Kernel::Poly6, poly6),
+            ] {
+                let got = k.eval(r, 2.0 * h);
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.max(1.0),
+                    "{k} r {r}: {got} vs {want}"
+                );
+            }
+        }
+        for i in 0..300 {
+            let r = i as f64 / 300.0 * 3.0 * h;
+            let q = r / h;
+            let p5 = |x: f64| x.max(0.0).powi(5);
+            let want =
+                (p5(3.0 - q) - 6.0 * p5(2.0 - q) + 15.0 * p5(1.0 - q)) / (120.0 * PI * h.powi(3));
+            let got = Kernel::Quintic.eval(r, 3.0 * h);
+            assert!(
+                (got - want).abs() <= 1e-12 * want.max(1.0),
+                "quintic r {r}: {got} vs {want}"
+            );
+            let big = 3.0 * h;
+            let g = Kernel::Gaussian;
+            let ratio = g.eval(r, big) / g.eval(0.0, big);
+            let sigma = big / 3.0;
+            let want = (-r * r / (2.0 * sigma * sigma)).exp();
+            assert!(
+                (ratio - want).abs() < 1e-12,
+                "gaussian r {r}: {ratio} vs {want}"
+            );
+        }
+    }
 }
