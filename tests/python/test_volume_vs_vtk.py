@@ -58,22 +58,26 @@ def test_reference_image_converges_to_vtk_volume_rendering(case, tmp_path):
     ctf, otf = matplotlib_tf("viridis", lo, hi, [0.05, 0.3, 0.8])
     tf = tmp_path / "tf.json"
     tf.write_text(json.dumps([tf_to_preset(ctf, otf)]))
-    out = tmp_path / "fluidcast.png"
-    fluidcast("render", path, "--array", c["array"], "--tf", tf, "--range", f"{lo},{hi}",
-              "--camera", save_camera(cam, tmp_path / "cam.json"),
-              "--size", f"{SIZE[0]}x{SIZE[1]}", "--opacity-unit-distance", c["unit"],
-              "--support-radius", support, "--mass-array", mass, "--density-array", density,
-              "--mode", "reference", "-o", out)
-    ours = read_png(out)
-    assert (ours != 255).any(axis=2).mean() > 0.05, "fluidcast drew almost nothing"
+    ours = {}
+    for mode in ("reference", "default"):
+        out = tmp_path / f"fluidcast_{mode}.png"
+        fluidcast("render", path, "--array", c["array"], "--tf", tf, "--range", f"{lo},{hi}",
+                  "--camera", save_camera(cam, tmp_path / "cam.json"),
+                  "--size", f"{SIZE[0]}x{SIZE[1]}", "--opacity-unit-distance", c["unit"],
+                  "--support-radius", support, "--mass-array", mass, "--density-array",
+                  density, *(["--mode", "reference"] if mode == "reference" else []), "-o", out)
+        ours[mode] = read_png(out)
+        assert (ours[mode] != 255).any(axis=2).mean() > 0.05, f"{mode}: drew almost nothing"
 
-    rmse = {}
+    rmse = {mode: {} for mode in ours}
     extent = max(hi - lo for lo, hi in np.array(ds.GetBounds()).reshape(3, 2)) + 2 * support
     for spacing_in_h in (0.5, 0.25):
         resolution = int(np.ceil(extent / (spacing_in_h * support))) + 1
         vol = sph_volume(ds, values, "cubic", support, resolution,
                             null_value=lo - 0.01 * (hi - lo), mass=mass, density=density)
         img, _ = render_volume(vol, cam, ctf, otf, c["unit"], SIZE)
-        rmse[spacing_in_h] = difference(img, ours)["rmse"]
-    assert rmse[0.25] <= 0.7 * rmse[0.5], f"no convergence: RMSE {rmse}"
-    assert rmse[0.25] <= 0.015, f"RMSE {rmse}"
+        for mode, im in ours.items():
+            rmse[mode][spacing_in_h] = difference(img, im)["rmse"]
+    for mode, r in rmse.items():
+        assert r[0.25] <= 0.7 * r[0.5], f"{mode}: no convergence: RMSE {r}"
+        assert r[0.25] <= 0.015, f"{mode}: RMSE {r}"
