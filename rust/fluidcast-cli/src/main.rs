@@ -67,7 +67,8 @@ struct CompareArgs {
 fn compare(a: CompareArgs) -> Result<()> {
     let ia = fluidcast_image::Image::read(&a.a)?;
     let ib = fluidcast_image::Image::read(&a.b)?;
-    let (c, diff) = fluidcast_image::compare(&ia, &ib, a.tolerance)?;
+    let (c, diff) = fluidcast_image::compare(&ia, &ib, a.tolerance)
+        .with_context(|| format!("comparing {} with {}", a.a.display(), a.b.display()))?;
     if let Some(d) = &a.diff {
         diff.save(d, [0.0; 3], fluidcast_image::PngEncoding::Vtk)
             .with_context(|| format!("writing {}", d.display()))?;

@@ -554,3 +554,127 @@ fn closed_pipes_and_full_disks() {
         );
     }
 }
+
+/// Bad view files and bad input to the other subcommands: an error naming the file and the
+/// problem, exit code 1, no panic.
+#[test]
+fn bad_camera_and_tf_files_and_tool_inputs() {
+    let sample =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let d = tempfile::tempdir().unwrap();
+    let cam = |name: &str, json: &str| {
+        let p = write(d.path(), name, json.as_bytes());
+        render_err(&sample, &["--camera", p.to_str().unwrap()])
+    };
+    let view = r#""position":[0,0,1],"focal_point":[0,0,0]"#;
+    for (name, json, want) in [
+        (
+            "c1.json",
+            r#"{"position":[0,0,1],"focal_point":[0,0,1],"view_up":[0,1,0]}"#,
+            "position equals the focal point",
+        ),
+        (
+            "c2.json",
+            r#"{"position":[0,0,1e400],"focal_point":[0,0,0],"view_up":[0,1,0]}"#,
+            "number out of range",
+        ),
+        (
+            "c3.json",
+            &format!(r#"{{{view},"view_up":[0,0,1]}}"#),
+            "view up is parallel",
+        ),
+        (
+            "c4.json",
+            &format!(r#"{{{view},"view_up":[0,1,0],"view_angle":0}}"#),
+            "view angle 0°",
+        ),
+        ("c5.json", "[1, 2", "camera"),
+    ] {
+        let err = cam(name, json);
+        assert!(err.contains(name) && err.contains(want), "{name}: {err}");
+    }
+    let tf = |name: &str, json: &str| {
+        let p = write(d.path(), name, json.as_bytes());
+        render_err(&sample, &["--tf", p.to_str().unwrap()])
+    };
+    for (name, json, want) in [
+        ("t1.json", "not json", "invalid JSON"),
+        ("t2.json", r#"[{"Name":"x"}]"#, "no preset with 'RGBPoints'"),
+        (
+            "t3.json",
+            r#"[{"Name":"x","RGBPoints":[0,1,0,0,"nan",0,1,0]}]"#,
+            "non-number",
+        ),
+        ("t4.json", "[]", "no preset with 'RGBPoints'"),
+        (
+            "t5.json",
+            r#"[{"Name":"x","RGBPoints":[0,1,0]}]"#,
+            "groups of 4 numbers",
+        ),
+    ] {
+        let err = tf(name, json);
+        assert!(err.contains(name) && err.contains(want), "{name}: {err}");
+    }
+    let missing = d.path().join("missing.json");
+    let err = render_err(&sample, &["--tf", missing.to_str().unwrap()]);
+    assert!(
+        err.contains("missing.json") && err.contains("No such file"),
+        "{err}"
+    );
+
+    // compare: a missing file, a file that is not an image, images of different sizes.
+    let img = |name: &str, size: &str| {
+        let p = d.path().join(name);
+        let (ok, err) = run(&[
+            "render",
+            sample.to_str().unwrap(),
+            "-o",
+            p.to_str().unwrap(),
+            "--size",
+            size,
+        ]);
+        assert!(ok, "{err}");
+        p
+    };
+    let (a, b) = (img("a.png", "8x8"), img("b.png", "9x8"));
+    let garbage = write(d.path(), "g.png", b"garbage");
+    for (x, y, want) in [
+        (a.clone(), d.path().join("nope.png"), "nope.png"),
+        (a.clone(), garbage.clone(), "g.png"),
+        (a.clone(), b.clone(), "a.png"),
+    ] {
+        let (ok, err) = run(&["compare", x.to_str().unwrap(), y.to_str().unwrap()]);
+        assert!(!ok && err.contains(want), "{err}");
+    }
+    let (_, err) = run(&["compare", a.to_str().unwrap(), b.to_str().unwrap()]);
+    assert!(err.contains("8x8 vs 9x8") && err.contains("b.png"), "{err}");
+
+    // info: a missing file, an unsupported extension, broken XML.
+    let broken = write(d.path(), "t.vtu", b"<VTKFile");
+    for (p, want) in [
+        (d.path().join("nope.vtu"), "nope.vtu"),
+        (garbage.clone(), "unsupported file extension"),
+        (broken, "malformed XML"),
+    ] {
+        let (ok, err) = run(&["info", p.to_str().unwrap()]);
+        assert!(!ok && err.contains(want), "{err}");
+    }
+    // probe: a missing points file, a non-finite point, a missing data file.
+    let nan = write(d.path(), "n.csv", b"x,y,z\nnan,0,0\n");
+    let out = d.path().join("o.csv");
+    for (data, pts, want) in [
+        (sample.clone(), d.path().join("nope.csv"), "nope.csv"),
+        (sample.clone(), nan.clone(), "n.csv: line 2"),
+        (d.path().join("nope.vtu"), nan.clone(), "nope.vtu"),
+    ] {
+        let (ok, err) = run(&[
+            "probe",
+            data.to_str().unwrap(),
+            "--points",
+            pts.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(!ok && err.contains(want), "{err}");
+    }
+}
