@@ -31,7 +31,7 @@ pub use adaptive::{
     AdaptiveRender, SURFACE_THRESHOLD,
 };
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
-pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats};
+pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
 pub use reference::render_reference;
 

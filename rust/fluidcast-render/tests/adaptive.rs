@@ -490,3 +490,89 @@ fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
         assert!(m <= e, "{what}: strict max abs error {m} above E_I");
     }
 }
+
+/// The AOVs hold the plan's numbers at the right pixels: in strict mode every pixel's error
+/// against full rate lies within its `error_bound`; `level` is the mean level of the pixel's
+/// bundle's sampled cells and `superpixel` their share drawn as super-pixels, counted here
+/// from the plan's cell levels and the bundle's pixel rectangle. (The relaxed plan runs on
+/// the same block with one constant value, where the inside becomes super-pixels.)
+#[test]
+fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
+    let ramp = fluidcast_testkit::depth_ramp(20);
+    let mut constant = ramp.clone();
+    constant.values.iter_mut().for_each(|v| *v = 0.1);
+    let (alpha, e, azimuth, parallel) = fluidcast_testkit::DEPTH_RAMP_CASES[0];
+    let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+    let cam = camera_for(&ramp, azimuth, 3.0, parallel);
+    let mut prm = params(90, 70, None);
+    prm.grid.depth_samples = 64;
+    let aov = |img: &Image, name: &str| -> Vec<f32> {
+        let a = img.aovs.iter().find(|(n, _)| n == name);
+        a.unwrap_or_else(|| panic!("no AOV {name}")).1.clone()
+    };
+    let strict = PlanParams {
+        tolerance: Some(e),
+        ..Default::default()
+    };
+    for (mode, p, plan) in [
+        ("strict", &ramp, strict.strict()),
+        ("relaxed", &constant, PlanParams::default()),
+    ] {
+        prm.adaptive.tolerance = None;
+        let off = render_adaptive(p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive = plan;
+        let s = render_adaptive(p, None, &cam, &tf, &prm).unwrap();
+        let (bound, level, sp) = (
+            aov(&s.image, "error_bound"),
+            aov(&s.image, "level"),
+            aov(&s.image, "superpixel"),
+        );
+        let mut seen = [0usize; 3];
+        for b in 0..s.grid.bundle_count() {
+            let first = s.grid.bundle_first_cell(b);
+            let levels = &s.plan.cell_levels[first..first + s.grid.bundle_cells(b).len()];
+            let sampled: Vec<f32> = levels
+                .iter()
+                .filter(|&&l| l != fluidcast_render::SamplingPlan::SUPERPIXEL)
+                .map(|&l| l as f32)
+                .collect();
+            let mean = sampled.iter().sum::<f32>() / sampled.len().max(1) as f32;
+            let share = (levels.len() - sampled.len()) as f32 / levels.len().max(1) as f32;
+            let [x0, x1, y0, y1] = s.grid.bundle(b).pixels;
+            for j in y0..y1 {
+                for i in x0..x1 {
+                    let k = s.image.index(i, j);
+                    assert!(
+                        (level[k] - mean).abs() < 1e-6,
+                        "{mode} ({i},{j}): level {} vs {mean}",
+                        level[k]
+                    );
+                    assert!(
+                        (sp[k] - share).abs() < 1e-6,
+                        "{mode} ({i},{j}): superpixel {} vs {share}",
+                        sp[k]
+                    );
+                    let err = (0..4)
+                        .map(|c| (s.image.rgba[k][c] - off.image.rgba[k][c]).abs())
+                        .fold(0.0f32, f32::max);
+                    if mode == "strict" {
+                        assert!(
+                            err <= bound[k] + 1e-5,
+                            "({i},{j}): error {err} above its bound {}",
+                            bound[k]
+                        );
+                    }
+                    seen[0] += usize::from(bound[k] > 0.0);
+                    seen[1] += usize::from(level[k] > 0.0);
+                    seen[2] += usize::from(sp[k] > 0.0);
+                }
+            }
+        }
+        eprintln!("{mode}: pixels with a bound, an adapted level, super-pixels: {seen:?}");
+        assert!(seen[0] > 0 && seen[1] > 0, "{mode}: {seen:?}");
+        assert!(
+            (mode == "relaxed") == (seen[2] > 0),
+            "{mode}: super-pixels {seen:?}"
+        );
+    }
+}
