@@ -708,23 +708,55 @@ mod tests {
         assert_eq!(info.particles, 216);
         assert!(info.samples > 0);
         assert!(rgba.chunks(4).any(|p| p[3] > 0.5));
-        // Same as calling the renderer directly with the same particles.
-        let p = &r.prepared.as_ref().unwrap().particles;
+        // Same as the renderer given the same raw arrays another way: as an ASCII .vtu read by
+        // fluidcast's reader, with the settings, camera and transfer function written out
+        // here (not the bridge's converted particles, camera or tables).
+        let xyz = cube(6, 0.1);
+        let pts: Vec<String> = xyz.iter().map(|v| v.to_string()).collect();
+        let vals: Vec<String> = (0..216).map(|i| (i % 7).to_string()).collect();
+        let vtu = format!(
+            r#"<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian"><PolyData>
+<Piece NumberOfPoints="216"><PointData><DataArray type="Float32" Name="value" format="ascii">{}
+</DataArray></PointData><Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">{}
+</DataArray></Points></Piece></PolyData></VTKFile>"#,
+            vals.join(" "),
+            pts.join(" ")
+        );
+        let ds =
+            fluidcast_io::parse_dataset(vtu.as_bytes(), std::path::Path::new("cube.vtp")).unwrap();
+        let spec = ParticleSpec {
+            quantity: Some("value".parse().unwrap()),
+            radius: RadiusSource::Constant(0.2),
+            volume: VolumeSource::Auto,
+            mass: None,
+        };
+        let p = Particles::from_dataset(&ds, &spec).unwrap();
+        let cam = Camera {
+            position: [0.25, 0.25, 3.0],
+            focal_point: [0.25, 0.25, 0.25],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 30.0,
+            parallel_projection: false,
+            parallel_scale: 1.0,
+        };
+        let tf = TransferFunction {
+            name: "blue to red".into(),
+            colors: vec![(0.0, [0.0, 0.0, 1.0]), (1.0, [1.0, 0.0, 0.0])],
+            opacity: vec![(0.0, 0.2), (1.0, 0.8)],
+            range: (0.0, 1.0),
+            unit_distance: 0.1,
+        }
+        .with_range(0.0, 6.0)
+        .unwrap();
         let params = RenderParams {
             width: w,
             height: h,
             ..Default::default()
         };
-        let direct = fluidcast_render::render_adaptive(
-            p,
-            None,
-            r.camera.as_ref().unwrap(),
-            r.tf.as_ref().unwrap(),
-            &params,
-        )
-        .unwrap();
+        let direct = fluidcast_render::render_adaptive(&p, None, &cam, &tf, &params).unwrap();
         for (k, px) in direct.image.rgba.iter().enumerate() {
-            assert_eq!(&rgba[4 * k..4 * k + 4], px);
+            assert_eq!(&rgba[4 * k..4 * k + 4], px, "pixel {k}");
+            assert_eq!(depth[k], direct.image.depth[k], "depth {k}");
         }
     }
 
