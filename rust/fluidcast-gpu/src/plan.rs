@@ -54,6 +54,12 @@ impl Gpu {
             _ => vec![0],
         };
         let surface = self.upload("surface flags", &flags);
+        let stops: Vec<f32> = match params.bundle_stops() {
+            // f32 is exact here: the stops are minima of the f32 depth limits.
+            Some(s) => s.iter().map(|&z| z as f32).collect(),
+            None => vec![f32::INFINITY],
+        };
+        let stops = self.upload("bundle stops", &stops);
         let a = Analysis {
             bounds: self.buffer("cell bounds", BOUND_BYTES * nc, RW, None),
             info: self.buffer("cell info", 4 * nc, RW, None),
@@ -72,7 +78,7 @@ impl Gpu {
         drop(pass);
         let mut pass = ctx.timer.pass(&mut enc, "gpu_adapt");
         if params.adaptive.tolerance.is_some() {
-            self.analyse(&mut pass, ctx, grid, &plan, &surface, &a)?;
+            self.analyse(&mut pass, ctx, grid, &plan, [&surface, &stops], &a)?;
         }
         self.greedy(&mut pass, ctx, grid, &plan, &a)?;
         drop(pass);
@@ -86,10 +92,11 @@ impl Gpu {
         ctx: &FrameCtx,
         grid: &Grid,
         plan: &Plan,
-        surface: &wgpu::Buffer,
+        [surface, stops]: [&wgpu::Buffer; 2],
         a: &Analysis,
     ) -> Result<(), GpuError> {
         let binds = [
+            ("stops", stops),
             ("P", &ctx.frame_buf),
             ("tf", &plan.tf),
             ("vparts", &grid.vparts),

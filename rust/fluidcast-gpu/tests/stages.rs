@@ -368,6 +368,65 @@ fn strict_bound_holds_along_a_depth_ramp_on_the_gpu() {
     }
 }
 
+/// Opaque geometry in the plan: where a wall stops some rays of a bundle, the steps past
+/// its nearest depth may be empty, so fewer cells coarsen (strict, on the depth ramp); the
+/// GPU's plan makes the same choices as the CPU's.
+#[test]
+fn gpu_plan_honours_opaque_geometry_as_the_cpu_does() {
+    let Some(g) = gpu() else { return };
+    let p = fluidcast_testkit::depth_ramp(20);
+    let (alpha, e, azimuth, _) = fluidcast_testkit::DEPTH_RAMP_CASES[0];
+    let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+    let mut cam = orbit(&p, azimuth, 3.0);
+    cam.zoom(1.2);
+    let strict = PlanParams {
+        tolerance: Some(e),
+        ..Default::default()
+    }
+    .strict();
+    let (w, h) = (96u32, 72u32);
+    let mut prm = params((w, h), strict);
+    prm.grid.depth_samples = 64;
+    let open = plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    // A wall at mid-depth over the left 60 % of the image.
+    let (near, far) = (open.stats.near, open.stats.far);
+    let z = (0.5 * (near + far)) as f32;
+    let wall: Vec<f32> = (0..w * h)
+        .map(|k| if k % w < 58 { z } else { f32::INFINITY })
+        .collect();
+    prm.depth_limit = Some(std::sync::Arc::from(wall));
+    let cpu = plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let adapted = |s: &fluidcast_render::PlanStats| s.level_cells[1..].iter().sum::<u64>();
+    let (a_open, a_wall) = (adapted(&open.plan.stats), adapted(&cpu.plan.stats));
+    assert!(
+        a_wall < a_open,
+        "the wall changed nothing: {a_wall} vs {a_open} cells adapt"
+    );
+    let (r, d) = g.render_with_dump(&p, None, &cam, &tf, &prm).unwrap();
+    let mut cpu_level = BTreeMap::new();
+    for b in 0..cpu.grid.bundle_count() {
+        let first = cpu.grid.bundle_first_cell(b);
+        for (i, c) in cpu.grid.bundle_cells(b).iter().enumerate() {
+            cpu_level.insert((b as u32, c.z), cpu.plan.cell_levels[first + i]);
+        }
+    }
+    let (mut same, mut n) = (0usize, 0usize);
+    for (k, c) in d.cells.iter().enumerate() {
+        if let Some(&l) = cpu_level.get(&(d.cell_bundles[k], c.z)) {
+            n += 1;
+            same += (l == d.levels[k]) as usize;
+        }
+    }
+    let gpu_adapted = adapted(&r.stats.plan.unwrap());
+    eprintln!(
+        "adapted cells: open {a_open}, wall CPU {a_wall}, GPU {gpu_adapted}; levels agree on {same} of {n}"
+    );
+    assert!(
+        same as f64 >= 0.995 * n as f64,
+        "levels agree on {same} of {n} cells"
+    );
+}
+
 #[test]
 fn gpu_buffers_are_reused_across_frames() {
     let Some(g) = gpu() else { return };

@@ -117,6 +117,8 @@ pub enum PlanError {
     Relax(f64),
     #[error("surface flags: {0} given for {1} particles")]
     SurfaceFlags(usize, usize),
+    #[error("depth stops: {0} given for {1} bundles")]
+    Stops(usize, usize),
 }
 
 /// A run of consecutive cells of one bundle that the ray caster treats as one: `count`
@@ -203,11 +205,15 @@ impl SamplingPlan {
     pub const SUPERPIXEL: u8 = u8::MAX;
 
     /// Builds the plan. `surface` flags surface particles (by particle index, see
-    /// [`fluidcast_sph::Particles::surface_flags`]); `None` means none are.
+    /// [`fluidcast_sph::Particles::surface_flags`]); `None` means none are. `stops` holds, per
+    /// bundle, the nearest view depth (world units) at which opaque geometry stops one of its
+    /// rays (`+∞` where none does; `None`: no geometry): a step that ends past it may be cut
+    /// short or skipped for some ray, so its bound includes "nothing", as an empty sample's.
     pub fn build(
         grid: &PerspectiveGrid,
         tf: &TransferFunction,
         surface: Option<&[bool]>,
+        stops: Option<&[f64]>,
         params: &PlanParams,
         field: &FieldParams,
     ) -> Result<SamplingPlan, PlanError> {
@@ -217,10 +223,18 @@ impl SamplingPlan {
                 return Err(PlanError::SurfaceFlags(s.len(), grid.particles.len()));
             }
         }
+        if let Some(s) = stops {
+            if s.len() != grid.bundle_count() {
+                return Err(PlanError::Stops(s.len(), grid.bundle_count()));
+            }
+        }
         let tfb = TfBounds::new(tf);
         let bundles: Vec<BundlePlan> = (0..grid.bundle_count())
             .into_par_iter()
-            .map(|b| plan_bundle(grid, b, &tfb, surface, params, field))
+            .map(|b| {
+                let stop = stops.map_or(f64::INFINITY, |s| s[b]);
+                plan_bundle(grid, b, &tfb, surface, stop, params, field)
+            })
             .collect();
         let mut plan = SamplingPlan {
             spans: Vec::new(),
@@ -421,8 +435,10 @@ impl Parts {
 }
 
 /// Bounds of one cell for levels 0..=max_level (Sec. 4.1–4.2). `parts` are the bundle's
-/// sub-bundles for the coverage test. Returns true when some sample that a particle reaches
-/// may still be empty for some ray (a coverage gap).
+/// sub-bundles for the coverage test; `stop` the nearest depth where opaque geometry stops a
+/// ray of the bundle. Returns true when some sample that a particle reaches may still be
+/// empty for some ray (a coverage gap).
+#[allow(clippy::too_many_arguments)]
 fn cell_bounds(
     grid: &PerspectiveGrid,
     bundle: &Bundle,
@@ -430,6 +446,7 @@ fn cell_bounds(
     cell: &Cell,
     tfb: &TfBounds,
     params: &FieldParams,
+    stop: f64,
     out: &mut [Bound; LEVELS],
 ) -> bool {
     let depths = grid.depths.as_ref().expect("cells exist only with depths");
@@ -494,9 +511,12 @@ fn cell_bounds(
             _ => (sum_lo[k], sum_hi[k]),
         };
         let r = tfb.range(a, b);
+        // A step that ends past `stop` may be cut short or skipped for some ray: "nothing"
+        // is then one of its values, as for a coverage gap (the rest of the ray is empty).
+        let stopped = depths.z[k0 + k + 1] > stop;
         vb[k] = ValueBound {
             empty: false,
-            may_be_empty: cover[k] != full,
+            may_be_empty: cover[k] != full || stopped,
             rgb_lo: r.rgb_lo,
             rgb_hi: r.rgb_hi,
             k_lo: tf.extinction(r.alpha_lo),
@@ -538,6 +558,7 @@ fn plan_bundle(
     b: usize,
     tfb: &TfBounds,
     surface: Option<&[bool]>,
+    stop: f64,
     params: &PlanParams,
     field: &FieldParams,
 ) -> BundlePlan {
@@ -583,7 +604,16 @@ fn plan_bundle(
     let mut lmax = vec![0usize; n];
     let mut sp_ok = vec![params.superpixels; n];
     for (c, cell) in cells.iter().enumerate() {
-        let gappy = cell_bounds(grid, &bundle, &parts, cell, tfb, field, &mut bounds[c]);
+        let gappy = cell_bounds(
+            grid,
+            &bundle,
+            &parts,
+            cell,
+            tfb,
+            field,
+            stop,
+            &mut bounds[c],
+        );
         let b0 = bounds[c][0];
         for l in 0..=maxl {
             let bl = bounds[c][l];

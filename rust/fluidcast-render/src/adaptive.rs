@@ -95,7 +95,8 @@ pub fn plan_adaptive(
         field: params.field,
         min_transmittance: params.min_transmittance,
     };
-    let plan = SamplingPlan::build(&grid, tf, surface.as_deref(), a, &field)?;
+    let stops = params.bundle_stops();
+    let plan = SamplingPlan::build(&grid, tf, surface.as_deref(), stops.as_deref(), a, &field)?;
     stats.plan = Some(plan.stats.clone());
     stats.stages.push(("adapt", ms(t1)));
     Ok(AdaptivePlan { grid, plan, stats })

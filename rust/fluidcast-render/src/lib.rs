@@ -79,6 +79,26 @@ impl RenderParams {
             None => f64::INFINITY,
         }
     }
+
+    /// Per bundle of `grid.bundle × grid.bundle` pixels (row-major, the last row and column
+    /// cut at the image's edge, as [`fluidcast_grid::PerspectiveGrid::bundle`]), the nearest
+    /// view depth at which opaque geometry stops one of its rays (`+∞` where none does);
+    /// `None` without a depth limit. The CPU and GPU planners read it
+    /// ([`fluidcast_plan::SamplingPlan::build`]'s `stops`).
+    pub fn bundle_stops(&self) -> Option<Vec<f64>> {
+        self.depth_limit.as_ref()?;
+        let d = self.grid.bundle.max(1);
+        let (bx, by) = (self.width.div_ceil(d), self.height.div_ceil(d));
+        let stops = (0..bx * by).map(|b| {
+            let (x0, y0) = ((b % bx) * d, (b / bx) * d);
+            let (x1, y1) = ((x0 + d).min(self.width), (y0 + d).min(self.height));
+            (y0..y1)
+                .flat_map(|j| (x0..x1).map(move |i| (i, j)))
+                .map(|(i, j)| self.depth_limit_at(i, j))
+                .fold(f64::INFINITY, f64::min)
+        });
+        Some(stops.collect())
+    }
 }
 
 impl Default for RenderParams {

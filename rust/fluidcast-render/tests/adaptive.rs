@@ -576,3 +576,90 @@ fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
         );
     }
 }
+
+/// The transfer-function range of a field over the particles (CSPH: the values; SPH and
+/// density: the field sampled at the particles).
+fn field_range(p: &Particles, kernel: Kernel, field: FieldKind) -> (f64, f64) {
+    if field == FieldKind::Csph {
+        let (lo, hi) = p.value_range();
+        return (lo as f64, hi as f64);
+    }
+    let pos: Vec<[f64; 3]> = p.positions.iter().map(|x| x.map(f64::from)).collect();
+    let v: Vec<f64> = p
+        .sample_many(kernel, &pos)
+        .iter()
+        .filter_map(|s| s.value(field))
+        .collect();
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    (lo, hi.max(lo + 1e-9))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
+
+    /// The strict guarantee over kernels, field kinds, bundle sizes, depth samples per cell,
+    /// projections and opaque geometry, on the depth ramp with E_I chosen where the plan must
+    /// adapt (twice the median full-rate bound): every case adapts some cells, no pixel moves
+    /// by more than E_I, and every pixel lies inside its bundle's plan bound.
+    #[test]
+    fn strict_plans_adapt_and_hold_everywhere(
+        kernel in prop::sample::select(Kernel::ALL.to_vec()),
+        field in prop::sample::select(vec![FieldKind::Csph, FieldKind::Sph, FieldKind::Density]),
+        bundle in prop::sample::select(vec![1u32, 2, 3, 5, 8, 12, 16]),
+        depth_samples in prop::sample::select(vec![4u32, 8, 16, 32, 64]),
+        azimuth in -20.0f64..20.0,
+        elevation in -20.0f64..20.0,
+        parallel in any::<bool>(),
+        alpha in 0.005f64..0.03,
+        limit in prop::option::of((0.2f64..0.9, 0.3f64..1.0)),
+    ) {
+        let p = fluidcast_testkit::depth_ramp(10);
+        let mut tf = fluidcast_testkit::depth_ramp_tf(alpha);
+        let (lo, hi) = field_range(&p, kernel, field);
+        tf = tf.with_range(lo, hi).unwrap();
+        let cam = camera_for(&p, azimuth, elevation, parallel);
+        let (w, h) = (40u32, 30u32);
+        let mut prm = params(w, h, None);
+        prm.kernel = kernel;
+        prm.field = field;
+        prm.grid = GridParams { bundle, depth_samples };
+        // No early termination: its allowance would leave no budget at the smallest E_I.
+        prm.min_transmittance = 0.0;
+        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        if let Some((depth, share)) = limit {
+            // An opaque wall over the left part of the image, at a depth inside the data.
+            let z = (off.stats.near + depth * (off.stats.far - off.stats.near)) as f32;
+            let cut = (share * w as f64) as u32;
+            let d: Vec<f32> = (0..w * h)
+                .map(|k| if k % w < cut { z } else { f32::INFINITY })
+                .collect();
+            prm.depth_limit = Some(std::sync::Arc::from(d));
+        }
+        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive = PlanParams { tolerance: Some(1.0), ..Default::default() }.strict();
+        let probe = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        // Twice the median full-rate bound of the bundles that see particles.
+        let mut widths: Vec<f64> = probe.plan.full_bounds.iter().map(|b| b.width()).filter(|&w| w > 0.0).collect();
+        widths.sort_by(f64::total_cmp);
+        prop_assert!(!widths.is_empty(), "no bundle sees the particles");
+        let e = (2.0 * widths[widths.len() / 2]).min(0.5);
+        prm.adaptive.tolerance = Some(e);
+        let s = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let st = s.stats.plan.clone().unwrap();
+        let adapted = st.level_cells[1..].iter().sum::<u64>();
+        prop_assert!(adapted > 0, "E_I {e}: nothing adapted of {} cells", st.cells);
+        let m = max_abs(&off.image, &s.image);
+        prop_assert!(m <= e + 1e-6, "E_I {e}: max abs error {m}");
+        for b in 0..s.grid.bundle_count() {
+            let [x0, x1, y0, y1] = s.grid.bundle(b).pixels;
+            for j in y0..y1 {
+                for i in x0..x1 {
+                    let px = pixel_it(s.image.rgba[s.image.index(i, j)]);
+                    prop_assert!(s.plan.plan_bounds[b].contains(px, 1e-5),
+                        "({i},{j}) {px:?} outside {:?}", s.plan.plan_bounds[b]);
+                }
+            }
+        }
+    }
+}

@@ -151,3 +151,42 @@ fn bad_depth_limits_are_errors() {
         assert!(e.contains(msg), "{e}");
     }
 }
+
+/// `bundle_stops` holds, per bundle, the nearest depth limit over exactly the pixels the grid
+/// gives that bundle (edge bundles cut at the image's border).
+#[test]
+fn bundle_stops_are_the_nearest_limit_of_each_bundles_pixels() {
+    let p = cloud(200, 5);
+    let (cam, tf) = common::cloud_view(20.0, 10.0, false, fluidcast_sph::FieldKind::Csph);
+    for (w, h, d) in [(37u32, 23u32, 8u32), (16, 16, 4), (9, 30, 5)] {
+        let limit: Vec<f32> = (0..w * h)
+            .map(|k| 1.0 + ((k * 7919) % 113) as f32)
+            .collect();
+        let prm = RenderParams {
+            width: w,
+            height: h,
+            grid: fluidcast_render::GridParams {
+                bundle: d,
+                depth_samples: 16,
+            },
+            depth_limit: Some(Arc::from(limit.clone())),
+            ..Default::default()
+        };
+        let stops = prm.bundle_stops().unwrap();
+        let plan = fluidcast_render::plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        assert_eq!(stops.len(), plan.grid.bundle_count());
+        for (b, &s) in stops.iter().enumerate() {
+            let [x0, x1, y0, y1] = plan.grid.bundle(b).pixels;
+            let limit = &limit;
+            let want = (y0..y1)
+                .flat_map(|j| (x0..x1).map(move |i| limit[(j * w + i) as usize]))
+                .fold(f32::INFINITY, f32::min);
+            assert_eq!(s, want as f64, "{w}x{h}, bundle {b}");
+        }
+        let none = RenderParams {
+            depth_limit: None,
+            ..prm
+        };
+        assert!(none.bundle_stops().is_none());
+    }
+}
