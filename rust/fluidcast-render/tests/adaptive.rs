@@ -598,12 +598,14 @@ fn field_range(p: &Particles, kernel: Kernel, field: FieldKind) -> (f64, f64) {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
 
-    /// The strict guarantee over kernels, field kinds, bundle sizes, depth samples per cell,
-    /// projections and opaque geometry, on the depth ramp with E_I chosen where the plan must
-    /// adapt (twice the median full-rate bound): every case adapts some cells, no pixel moves
-    /// by more than E_I, and every pixel lies inside its bundle's plan bound.
+    /// The strict guarantee over scenes (the depth ramp, layers with gaps), kernels, field
+    /// kinds, bundle sizes, depth samples per cell, projections and opaque geometry, with E_I
+    /// chosen where the plan must adapt (twice the median full-rate bound): every case adapts
+    /// some cells, no pixel moves by more than E_I, and every pixel, adaptive and full-rate,
+    /// lies inside its bundle's plan bound.
     #[test]
     fn strict_plans_adapt_and_hold_everywhere(
+        layered in any::<bool>(),
         kernel in prop::sample::select(Kernel::ALL.to_vec()),
         field in prop::sample::select(vec![FieldKind::Csph, FieldKind::Sph, FieldKind::Density]),
         bundle in prop::sample::select(vec![1u32, 2, 3, 5, 8, 12, 16]),
@@ -614,7 +616,11 @@ proptest! {
         alpha in 0.005f64..0.03,
         limit in prop::option::of((0.2f64..0.9, 0.3f64..1.0)),
     ) {
-        let p = fluidcast_testkit::depth_ramp(10);
+        let p = if layered {
+            fluidcast_testkit::layers(3, 0.5, 0.1)
+        } else {
+            fluidcast_testkit::depth_ramp(10)
+        };
         let mut tf = fluidcast_testkit::depth_ramp_tf(alpha);
         let (lo, hi) = field_range(&p, kernel, field);
         tf = tf.with_range(lo, hi).unwrap();
@@ -655,9 +661,12 @@ proptest! {
             let [x0, x1, y0, y1] = s.grid.bundle(b).pixels;
             for j in y0..y1 {
                 for i in x0..x1 {
-                    let px = pixel_it(s.image.rgba[s.image.index(i, j)]);
-                    prop_assert!(s.plan.plan_bounds[b].contains(px, 1e-5),
-                        "({i},{j}) {px:?} outside {:?}", s.plan.plan_bounds[b]);
+                    let k = s.image.index(i, j);
+                    for (what, px) in [("adaptive", s.image.rgba[k]), ("full-rate", off.image.rgba[k])] {
+                        let px = pixel_it(px);
+                        prop_assert!(s.plan.plan_bounds[b].contains(px, 1e-5),
+                            "{what} ({i},{j}) {px:?} outside {:?}", s.plan.plan_bounds[b]);
+                    }
                 }
             }
         }

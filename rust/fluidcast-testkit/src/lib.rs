@@ -101,3 +101,33 @@ pub const DEPTH_RAMP_CASES: [(f64, f64, f64, bool); 4] = [
     (0.01, 0.01, 5.0, true),
     (0.02, 0.02, 5.0, false),
 ];
+
+/// Sheets of fluid stacked along z with empty gaps between them: `layers` layers of three
+/// particle sheets at `spacing` (support radius 2.5 spacings), filling x, y ∈ [−`half`,
+/// `half`], each layer's value its index plus a gentle ramp in z; the gaps are wider than a
+/// support, so no particle's depth range spans two layers. Seen along z, cells start in a
+/// layer and end in a gap or the reverse: a coarse sample may stand for empty steps, and an
+/// empty one for filled steps, so the level bound must include "nothing" there.
+pub fn layers(layers: usize, half: f32, spacing: f32) -> Particles {
+    let n = (2.0 * half / spacing).round() as i32;
+    let h = 2.5 * spacing;
+    let pitch = 2.0 * spacing + 2.0 * h + 4.0 * spacing;
+    let mut p = Particles::default();
+    for l in 0..layers {
+        let z0 = (l as f32 - 0.5 * (layers as f32 - 1.0)) * pitch;
+        for k in 0..3 {
+            let z = z0 + (k as f32 - 1.0) * spacing;
+            for i in 0..=n {
+                for j in 0..=n {
+                    p.positions
+                        .push([-half + i as f32 * spacing, -half + j as f32 * spacing, z]);
+                    p.radii.push(h);
+                    p.volumes.push(spacing.powi(3));
+                    p.masses.push(spacing.powi(3));
+                    p.values.push(l as f32 + 0.1 * (k as f32 - 1.0));
+                }
+            }
+        }
+    }
+    p
+}
