@@ -11,6 +11,9 @@
 //   TestFluidCastMapper depth DATA.vtu ARRAY OUTDIR
 //       an opaque box in front of, behind and cutting through the particles: the mapper must
 //       respect the depth buffer (fails if it ignored it).
+//   TestFluidCastMapper depthcut OUTDIR
+//       a uniform slab cut by an opaque box under a perspective camera: the opacity in front
+//       of the box follows the closed form 1 - exp(-sigma L) (depth-buffer unprojection).
 //   TestFluidCastMapper bad DATA.vtu
 //       bad input (missing array, no points, NaN radius, NaN coordinates) gives VTK errors,
 //       no crash, nothing drawn.
@@ -628,6 +631,103 @@ int Depth(const std::string& data, const std::string& array, const std::string& 
   return ok ? 0 : 1;
 }
 
+/**
+ * Perspective depth-buffer unprojection against a closed form: a uniform slab of particles
+ * (constant value, so constant opacity) seen face-on from a perspective camera, with an opaque
+ * box from behind the slab up to z_c. The mapper must stop each ray where the box's depth
+ * buffer says, so the slab's opacity in front of the box is 1 - exp(-sigma L), with L the
+ * ray's path from the slab's top (z = 0.4) down to z_c: (0.4 - z_c) / cos(theta) for the
+ * pixel's ray angle theta, computed here from the view angle alone. The opacity is measured
+ * as (white box - black box) / 255 = 1 - alpha. Three cuts; within 0.03 (a sample step's
+ * opacity).
+ */
+int DepthCut(const std::string& out)
+{
+  const double spacing = 0.05, h = 0.2, alpha0 = 0.5, unit = 0.2;
+  vtkNew<vtkPoints> pts;
+  for (int k = 0; k < 5; ++k)
+  {
+    for (int j = -20; j <= 20; ++j)
+    {
+      for (int i = -20; i <= 20; ++i)
+      {
+        pts->InsertNextPoint(i * spacing, j * spacing, k * spacing);
+      }
+    }
+  }
+  vtkNew<vtkPolyData> slab;
+  slab->SetPoints(pts);
+  vtkNew<vtkFloatArray> value;
+  value->SetName("value");
+  value->SetNumberOfTuples(pts->GetNumberOfPoints());
+  value->Fill(0.5);
+  slab->GetPointData()->AddArray(value);
+  TF tf = MakeTF(0, 1);
+  tf.opacity = { 0, alpha0, 1, alpha0 };
+  const double sigma = -std::log(1 - alpha0) / unit;
+
+  Scene s;
+  s.Show(slab, "value", Property(tf, unit));
+  s.mapper->SetSupportRadius(h);
+  s.mapper->SetErrorTolerance(0);
+  vtkCamera* cam = s.ren->GetActiveCamera();
+  cam->SetPosition(0, 0, 3);
+  cam->SetFocalPoint(0, 0, 0);
+  cam->SetViewUp(0, 1, 0);
+  cam->SetViewAngle(30);
+  s.ren->ResetCameraClippingRange(-1.5, 1.5, -1.5, 1.5, -1, 0.5);
+
+  vtkNew<vtkCubeSource> cube;
+  vtkNew<vtkPolyDataMapper> cm;
+  cm->SetInputConnection(cube->GetOutputPort());
+  vtkNew<vtkActor> box;
+  box->SetMapper(cm);
+  box->GetProperty()->LightingOff();
+  s.ren->AddActor(box);
+  const double top = 4 * spacing + h, tanHalf = std::tan(15.0 * std::acos(-1.0) / 180.0);
+  double worst = 0;
+  size_t n = 0;
+  for (double zc : { 0.3, 0.15, 0.0 })
+  {
+    cube->SetBounds(-0.6, 0.6, -0.6, 0.6, -1.0, zc);
+    Image img[2];
+    for (int c = 0; c < 2; ++c)
+    {
+      box->GetProperty()->SetColor(c, c, c);
+      s.ren->SetBackground(c, c, c);
+      s.win->Render();
+      img[c] = Grab(s.win);
+    }
+    WritePng(img[1], out + "/cut_" + std::to_string(zc) + ".png");
+    for (int j = 0; j < H; ++j)
+    {
+      for (int i = 0; i < W; ++i)
+      {
+        // The pixel's ray: tangents of its angles from the view axis (rows bottom first).
+        const double ty = (2.0 * (j + 0.5) / H - 1) * tanHalf;
+        const double tx = (2.0 * (i + 0.5) / W - 1) * tanHalf * W / H;
+        if (std::abs(tx) > 0.12 || std::abs(ty) > 0.12)
+        {
+          continue; // well inside the box's footprint at every cut
+        }
+        const double path = (top - zc) * std::sqrt(1 + tx * tx + ty * ty);
+        const double want = 1 - std::exp(-sigma * path);
+        const double got = 1 - (img[1].at(i, j, 1) - img[0].at(i, j, 1)) / 255.0;
+        worst = std::max(worst, std::abs(got - want));
+        ++n;
+      }
+    }
+  }
+  std::cout << n << " pixels at three cuts; largest opacity difference from the closed form "
+            << worst << "\n";
+  if (n < 1000 || worst > 0.03)
+  {
+    std::cerr << "FAIL: the slab in front of the box is not 1 - exp(-sigma L)\n";
+    return 1;
+  }
+  return 0;
+}
+
 struct ErrorCatcher
 {
   std::vector<std::string> messages;
@@ -788,6 +888,10 @@ int main(int argc, char* argv[])
   {
     return Properties(argv[2], argv[3], argv[4], argv[5]);
   }
+  if (mode == "depthcut" && argc == 3)
+  {
+    return DepthCut(argv[2]);
+  }
   if (mode == "depth" && argc == 5)
   {
     return Depth(argv[2], argv[3], argv[4]);
@@ -801,7 +905,7 @@ int main(int argc, char* argv[])
     return Backends(argv[2], argv[3], argv[4]);
   }
   std::cerr << "usage: TestFluidCastMapper window DATA ARRAY OUTDIR CLI TOLERANCE | properties "
-               "DATA ARRAY OUTDIR CLI | depth DATA ARRAY OUTDIR | bad DATA | backend DATA ARRAY "
+               "DATA ARRAY OUTDIR CLI | depth DATA ARRAY OUTDIR | depthcut OUTDIR | bad DATA | backend DATA ARRAY "
                "OUTDIR\n";
   return 2;
 }
