@@ -672,3 +672,51 @@ proptest! {
         }
     }
 }
+
+/// The default relaxed plan where it bites: on the depth ramp and on layers with gaps, under
+/// faint transfer functions, a real share of the cells coarsens or becomes super-pixels
+/// (>= 20 % over all views), no pixel moves by more than 2 E_I, and at most 0.05 % of all
+/// pixels move by more than E_I (the relaxed promise; measured: 39 of 110,592, 28 % of cells
+/// adapted).
+#[test]
+fn relaxed_plan_adapts_and_caps_its_excess() {
+    let scenes = [
+        ("ramp", fluidcast_testkit::depth_ramp(20)),
+        ("layers", fluidcast_testkit::layers(3, 0.5, 0.05)),
+    ];
+    let (mut above, mut pixels, mut adapted, mut cells) = (0u64, 0u64, 0u64, 0u64);
+    for (name, p) in &scenes {
+        for alpha in [0.01, 0.05] {
+            let tf = fluidcast_testkit::depth_ramp_tf(alpha)
+                .with_range(-0.5, 2.5)
+                .unwrap();
+            for azimuth in [5.0, -10.0] {
+                let cam = camera_for(p, azimuth, 3.0, false);
+                let off = render_adaptive(p, None, &cam, &tf, &params(96, 72, None)).unwrap();
+                for e in [0.004, 0.01] {
+                    let s = render_adaptive(p, None, &cam, &tf, &params(96, 72, Some(e))).unwrap();
+                    let st = s.stats.plan.clone().unwrap();
+                    adapted += st.level_cells[1..].iter().sum::<u64>() + st.superpixel_cells;
+                    cells += st.cells;
+                    let (a, n) = count_above(&off.image, &s.image, e);
+                    above += a;
+                    pixels += n;
+                    let m = max_abs(&off.image, &s.image);
+                    assert!(
+                        m <= 2.0 * e,
+                        "{name}, alpha {alpha}, azimuth {azimuth}, E_I {e}: max abs {m}"
+                    );
+                }
+            }
+        }
+    }
+    eprintln!("relaxed: {adapted} of {cells} cells adapted, {above} of {pixels} pixels above E_I");
+    assert!(
+        adapted as f64 >= 0.2 * cells as f64,
+        "only {adapted} of {cells} cells adapted"
+    );
+    assert!(
+        above as f64 <= 0.0005 * pixels as f64,
+        "{above} of {pixels} pixels above E_I"
+    );
+}
