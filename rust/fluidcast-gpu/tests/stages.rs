@@ -57,6 +57,26 @@ fn gpu_cells(d: &GpuDump) -> Cells {
 }
 
 /// Cells whose references differ between CPU and GPU (or that only one has), of all cells.
+/// (cells whose chosen level is the same, cells both grids have): the CPU plan against the
+/// GPU's dump, cells matched by (bundle, z).
+fn levels_agree(cpu: &AdaptivePlan, d: &GpuDump) -> (usize, usize) {
+    let mut cpu_level = BTreeMap::new();
+    for b in 0..cpu.grid.bundle_count() {
+        let first = cpu.grid.bundle_first_cell(b);
+        for (i, c) in cpu.grid.bundle_cells(b).iter().enumerate() {
+            cpu_level.insert((b as u32, c.z), cpu.plan.cell_levels[first + i]);
+        }
+    }
+    let (mut same, mut n) = (0usize, 0usize);
+    for (k, c) in d.cells.iter().enumerate() {
+        if let Some(&l) = cpu_level.get(&(d.cell_bundles[k], c.z)) {
+            n += 1;
+            same += (l == d.levels[k]) as usize;
+        }
+    }
+    (same, n)
+}
+
 fn cell_mismatch(a: &Cells, b: &Cells) -> (usize, usize) {
     let keys: std::collections::BTreeSet<_> = a.keys().chain(b.keys()).collect();
     let differ = keys.iter().filter(|k| a.get(k) != b.get(k)).count();
@@ -176,20 +196,7 @@ fn gpu_grid_and_plan_match_the_cpu_mirror() {
             // Plan: the level (or super-pixel) of every cell both grids have. Bounds are
             // composited in f32 against E_I, so a choice whose composited width lies within
             // rounding of the budget may go the other way; that is rare.
-            let mut cpu_level = BTreeMap::new();
-            for b in 0..cpu.grid.bundle_count() {
-                let first = cpu.grid.bundle_first_cell(b);
-                for (i, c) in cpu.grid.bundle_cells(b).iter().enumerate() {
-                    cpu_level.insert((b as u32, c.z), cpu.plan.cell_levels[first + i]);
-                }
-            }
-            let (mut same, mut n) = (0usize, 0usize);
-            for (k, c) in d.cells.iter().enumerate() {
-                if let Some(&l) = cpu_level.get(&(d.cell_bundles[k], c.z)) {
-                    n += 1;
-                    same += (l == d.levels[k]) as usize;
-                }
-            }
+            let (same, n) = levels_agree(&cpu, &d);
             let cs = cpu.plan.stats.clone();
             let gs = r.stats.plan.clone().unwrap();
             eprintln!(
@@ -403,20 +410,7 @@ fn gpu_plan_honours_opaque_geometry_as_the_cpu_does() {
         "the wall changed nothing: {a_wall} vs {a_open} cells adapt"
     );
     let (r, d) = g.render_with_dump(&p, None, &cam, &tf, &prm).unwrap();
-    let mut cpu_level = BTreeMap::new();
-    for b in 0..cpu.grid.bundle_count() {
-        let first = cpu.grid.bundle_first_cell(b);
-        for (i, c) in cpu.grid.bundle_cells(b).iter().enumerate() {
-            cpu_level.insert((b as u32, c.z), cpu.plan.cell_levels[first + i]);
-        }
-    }
-    let (mut same, mut n) = (0usize, 0usize);
-    for (k, c) in d.cells.iter().enumerate() {
-        if let Some(&l) = cpu_level.get(&(d.cell_bundles[k], c.z)) {
-            n += 1;
-            same += (l == d.levels[k]) as usize;
-        }
-    }
+    let (same, n) = levels_agree(&cpu, &d);
     let gpu_adapted = adapted(&r.stats.plan.unwrap());
     eprintln!(
         "adapted cells: open {a_open}, wall CPU {a_wall}, GPU {gpu_adapted}; levels agree on {same} of {n}"

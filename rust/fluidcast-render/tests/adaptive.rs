@@ -183,14 +183,7 @@ fn off_equals_reference_at_the_same_samples() {
             FieldKind::Csph => tf.clone(),
             _ => {
                 // Map the field's range at the particles.
-                let pos: Vec<[f64; 3]> = p.positions.iter().map(|x| x.map(f64::from)).collect();
-                let v: Vec<f64> = p
-                    .sample_many(kernel, &pos)
-                    .iter()
-                    .filter_map(|s| s.value(field))
-                    .collect();
-                let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
-                let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                let (lo, hi) = field_range(&p, kernel, field);
                 tf.clone().with_range(lo, hi).unwrap()
             }
         };
