@@ -791,6 +791,19 @@ mod tests {
 
     static PARTIAL: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
+    /// No extinction lets everything through, over any length (a far outlier's step can be
+    /// infinitely long), and no length does too; a product that is not a number is `None`.
+    #[test]
+    fn transmittance_is_one_without_extinction_or_length() {
+        assert_eq!(transmittance(0.0, f64::INFINITY), Some(1.0));
+        assert_eq!(transmittance(f64::INFINITY, 0.0), Some(1.0));
+        assert_eq!(transmittance(0.0, 2.0), Some(1.0));
+        assert_eq!(transmittance(f64::INFINITY, 1.0), Some(0.0));
+        assert_eq!(transmittance(f64::NAN, 1.0), None);
+        let t = transmittance(2.0, 0.5).unwrap();
+        assert!((t - (-1.0f64).exp()).abs() < 1e-15);
+    }
+
     /// The property below sees partial coverage (some parts, not all) often.
     #[test]
     fn parts_cover_partially_often() {
