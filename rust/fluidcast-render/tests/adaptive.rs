@@ -475,6 +475,10 @@ fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
         let adapted = st.level_cells[1..].iter().sum::<u64>() as f64 / st.cells as f64;
         let m = max_abs(&off.image, &s.image);
         let what = format!("alpha {alpha}, azimuth {azimuth}, parallel {parallel}, E_I {e}");
+        // The share is of every cell the grid has, each at one level.
+        assert_eq!(st.cells, s.grid.cells.len() as u64, "{what}");
+        let levels: u64 = st.level_cells.iter().sum::<u64>() + st.superpixel_cells;
+        assert_eq!(levels, st.cells, "{what}: every cell has one level");
         assert!(
             adapted >= 0.3,
             "{what}: only {adapted:.3} of the cells adapt"
