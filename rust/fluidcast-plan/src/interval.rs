@@ -54,3 +54,29 @@ impl Bound {
         (0..4).all(|c| v[c] >= self.lo[c] - eps && v[c] <= self.hi[c] + eps)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `contains` (what the tests hold pixels to) is false as soon as one channel leaves its
+    /// interval by more than `eps`, on either side.
+    #[test]
+    fn contains_needs_every_channel_inside() {
+        let b = Bound {
+            lo: [0.1, 0.2, 0.3, 0.4],
+            hi: [0.2, 0.3, 0.4, 0.5],
+        };
+        assert!(b.contains([0.15, 0.25, 0.35, 0.45], 0.0));
+        assert!(b.contains([0.1, 0.3, 0.3, 0.5], 0.0));
+        assert!(b.contains([0.09, 0.31, 0.3, 0.5], 0.011));
+        for c in 0..4 {
+            for v in [b.lo[c] - 0.01, b.hi[c] + 0.01] {
+                let mut p = b.mid();
+                p[c] = v;
+                assert!(!b.contains(p, 0.005), "channel {c} at {v}");
+                assert!(b.contains(p, 0.011), "channel {c} at {v} within eps");
+            }
+        }
+    }
+}
