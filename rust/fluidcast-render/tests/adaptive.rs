@@ -205,6 +205,8 @@ fn off_equals_reference_at_the_same_samples() {
             "{parallel} {field:?} {kernel:?}: depth differs by {dz}"
         );
         assert_eq!(rs.samples, a.stats.samples, "same samples composited");
+        // At full rate every cell reads each of its references once.
+        assert_eq!(a.stats.plan.as_ref().unwrap().refs_sampled, a.stats.pairs);
     }
 }
 
@@ -485,6 +487,21 @@ fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
         );
         assert!(m > 0.0, "{what}: adapting changed nothing");
         assert!(m <= e, "{what}: strict max abs error {m} above E_I");
+        // Early termination at transmittance t may move a pixel by t, so a bundle that adapts
+        // must keep its plan's bound within E_I - t (here t = E_I / 5).
+        prm.min_transmittance = e / 5.0;
+        let s = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let adapting = s.plan.summaries.iter().filter(|b| b.adapted > 0.0);
+        let worst = adapting
+            .clone()
+            .map(|b| b.predicted_error)
+            .fold(0.0f32, f32::max);
+        assert!(
+            adapting.count() > 0,
+            "{what}: nothing adapts with early termination"
+        );
+        assert!(worst as f64 <= 0.8 * e + 1e-6, "{what}: predicted {worst}");
+        prm.min_transmittance = RenderParams::default().min_transmittance;
     }
 }
 
