@@ -118,6 +118,20 @@ pub fn support_depth_range(particles: &Particles, frame: &ViewFrame) -> Option<(
     depth_range(zmin, zmax, frame.parallel.is_none())
 }
 
+/// The pixels `[x0, x1, y0, y1]` (ends exclusive) of ray bundle `b` when a `width × height`
+/// image is tiled row-major into bundles of `size × size` pixels, the last row and column
+/// cut at the image's edge: the grid's, the plan's AOVs' and the depth stops' one layout.
+pub fn bundle_pixels(width: u32, height: u32, size: u32, b: usize) -> [u32; 4] {
+    let across = width.div_ceil(size).max(1);
+    let (bx, by) = (b as u32 % across, b as u32 / across);
+    [
+        bx * size,
+        ((bx + 1) * size).min(width),
+        by * size,
+        ((by + 1) * size).min(height),
+    ]
+}
+
 /// `[near, far]` from the smallest and largest view depth of any support (`zmin`, `zmax`):
 /// `None` when a perspective view has nothing in front of the camera; near is clamped to
 /// far·10⁻⁴ for a perspective view so that the log spacing stays finite. Shared with the GPU
@@ -601,17 +615,8 @@ impl PerspectiveGrid {
 
     /// Bundle `b`'s pixels and ray extents.
     pub fn bundle(&self, b: usize) -> Bundle {
-        let d = self.params.bundle;
-        let (bx, by) = (b as u32 % self.bundles_x, b as u32 / self.bundles_x);
-        Bundle::from_pixels(
-            &self.frame,
-            [
-                bx * d,
-                ((bx + 1) * d).min(self.frame.width),
-                by * d,
-                ((by + 1) * d).min(self.frame.height),
-            ],
-        )
+        let (w, h) = (self.frame.width, self.frame.height);
+        Bundle::from_pixels(&self.frame, bundle_pixels(w, h, self.params.bundle, b))
     }
 
     /// The cells of bundle `b`, front to back.

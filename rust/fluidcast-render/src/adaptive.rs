@@ -333,12 +333,11 @@ pub fn bundle_aovs(
         return Vec::new();
     }
     let n = width as usize * height as usize;
-    let bx = width.div_ceil(bundle);
     let mut aov = [vec![0f32; n], vec![0f32; n], vec![0f32; n]];
     for (b, s) in summaries.iter().enumerate() {
-        let (x0, y0) = ((b as u32 % bx) * bundle, (b as u32 / bx) * bundle);
-        for j in y0..(y0 + bundle).min(height) {
-            for i in x0..(x0 + bundle).min(width) {
+        let [x0, x1, y0, y1] = fluidcast_grid::bundle_pixels(width, height, bundle, b);
+        for j in y0..y1 {
+            for i in x0..x1 {
                 let idx = j as usize * width as usize + i as usize;
                 aov[0][idx] = s.predicted_error;
                 aov[1][idx] = s.mean_level;

@@ -87,11 +87,9 @@ impl RenderParams {
     /// ([`fluidcast_plan::SamplingPlan::build`]'s `stops`).
     pub fn bundle_stops(&self) -> Option<Vec<f64>> {
         self.depth_limit.as_ref()?;
-        let d = self.grid.bundle.max(1);
-        let (bx, by) = (self.width.div_ceil(d), self.height.div_ceil(d));
-        let stops = (0..bx * by).map(|b| {
-            let (x0, y0) = ((b % bx) * d, (b / bx) * d);
-            let (x1, y1) = ((x0 + d).min(self.width), (y0 + d).min(self.height));
+        let (w, h, d) = (self.width, self.height, self.grid.bundle.max(1));
+        let stops = (0..(w.div_ceil(d) * h.div_ceil(d)) as usize).map(|b| {
+            let [x0, x1, y0, y1] = fluidcast_grid::bundle_pixels(w, h, d, b);
             (y0..y1)
                 .flat_map(|j| (x0..x1).map(move |i| (i, j)))
                 .map(|(i, j)| self.depth_limit_at(i, j))
