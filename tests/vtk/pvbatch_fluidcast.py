@@ -84,9 +84,17 @@ cam.Azimuth(30)
 cam.Elevation(20)
 cam.OrthogonalizeViewUp()
 view.ResetCamera()
-Render(view)
-shot = os.path.join(out, "paraview.png")
-SaveScreenshot(shot, view, ImageResolution=[W, H], TransparentBackground=0)
+
+
+def screenshot(name=""):
+    """Renders the view and saves it as OUTDIR/paraview[_NAME].png; returns the path."""
+    Render(view)
+    path = os.path.join(out, f"paraview_{name}.png" if name else "paraview.png")
+    SaveScreenshot(path, view, ImageResolution=[W, H], TransparentBackground=0)
+    return path
+
+
+shot = screenshot()
 
 with open(os.path.join(out, "camera.json"), "w") as f:
     json.dump({"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
@@ -135,31 +143,18 @@ print(f"ParaView vs CLI: max abs {d.max()}/255, mean {d.mean():.4f}/255, "
 status = 0 if d.max() <= allowed else 1
 if backend == "GPU":
     display.FluidCastBackend = "CPU"
-    Render(view)
-    cpu_shot = os.path.join(out, "paraview_cpu.png")
-    SaveScreenshot(cpu_shot, view, ImageResolution=[W, H], TransparentBackground=0)
-    g = abs(read(cpu_shot) - a)
+    g = abs(read(screenshot("cpu")) - a)
     print(f"FluidCastBackend GPU vs CPU: max abs {g.max()}/255, mean {g.mean():.5f}/255")
     status = status or (0 if g.max() <= 2 else 1)
     # The properties reach the mapper: a GPU adapter nobody has draws nothing (an error).
     display.FluidCastBackend = "GPU"
     display.FluidCastAdapter = "no-such-gpu"
-    Render(view)
-    none_shot = os.path.join(out, "paraview_no_adapter.png")
-    SaveScreenshot(none_shot, view, ImageResolution=[W, H], TransparentBackground=0)
-    drawn_none = int((read(none_shot) != 255).any(axis=1).sum())
+    drawn_none = int((read(screenshot("no_adapter")) != 255).any(axis=1).sum())
     print(f"FluidCastAdapter 'no-such-gpu': {drawn_none} pixels drawn (expected none)")
     status = status or (0 if drawn_none == 0 else 1)
 if drawn < W * H // 20:
     print("FAIL: the representation drew almost nothing")
     status = 1
-
-
-def screenshot(name):
-    Render(view)
-    path = os.path.join(out, f"paraview_{name}.png")
-    SaveScreenshot(path, view, ImageResolution=[W, H], TransparentBackground=0)
-    return path
 
 
 def property_follows_cli(name, component="mag", extra=()):
