@@ -29,6 +29,7 @@
 #include "vtkFloatArray.h"
 #include "vtkFluidCastVolumeMapper.h"
 #include "vtkImageData.h"
+#include "vtkMath.h"
 #include "vtkNew.h"
 #include "vtkPNGReader.h"
 #include "vtkPNGWriter.h"
@@ -247,6 +248,18 @@ struct Scene
     volume->SetProperty(prop);
   }
 };
+
+/** An unlit opaque box (the cube's bounds, set by the caller) in the scene's renderer. */
+vtkActor* AddBox(Scene& s, vtkCubeSource* cube)
+{
+  vtkNew<vtkPolyDataMapper> cm;
+  cm->SetInputConnection(cube->GetOutputPort());
+  vtkNew<vtkActor> box;
+  box->SetMapper(cm);
+  box->GetProperty()->LightingOff();
+  s.ren->AddActor(box); // the renderer keeps the actor (and its mapper) alive
+  return box;
+}
 
 void SetupCamera(Scene& s, const double bounds[6])
 {
@@ -546,13 +559,8 @@ int Depth(const std::string& data, const std::string& array, const std::string& 
 
   // An unlit red box covering the middle of the view, at a chosen z range.
   vtkNew<vtkCubeSource> cube;
-  vtkNew<vtkPolyDataMapper> cm;
-  cm->SetInputConnection(cube->GetOutputPort());
-  vtkNew<vtkActor> box;
-  box->SetMapper(cm);
+  vtkActor* box = AddBox(s, cube);
   box->GetProperty()->SetColor(1, 0, 0);
-  box->GetProperty()->LightingOff();
-  s.ren->AddActor(box);
   const double cx = 0.5 * (b[0] + b[1]), cy = 0.5 * (b[2] + b[3]);
   const double dx = 0.3 * (b[1] - b[0]), dy = 0.3 * (b[3] - b[2]);
   auto place = [&](double z0, double z1) {
@@ -678,13 +686,8 @@ int DepthCut(const std::string& out)
   s.ren->ResetCameraClippingRange(-1.5, 1.5, -1.5, 1.5, -1, 0.5);
 
   vtkNew<vtkCubeSource> cube;
-  vtkNew<vtkPolyDataMapper> cm;
-  cm->SetInputConnection(cube->GetOutputPort());
-  vtkNew<vtkActor> box;
-  box->SetMapper(cm);
-  box->GetProperty()->LightingOff();
-  s.ren->AddActor(box);
-  const double top = 4 * spacing + h, tanHalf = std::tan(15.0 * std::acos(-1.0) / 180.0);
+  vtkActor* box = AddBox(s, cube);
+  const double top = 4 * spacing + h, tanHalf = std::tan(vtkMath::RadiansFromDegrees(15.0));
   double worst = 0;
   size_t n = 0;
   for (double zc : { 0.3, 0.15, 0.0 })
