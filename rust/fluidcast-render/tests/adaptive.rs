@@ -654,7 +654,7 @@ proptest! {
         prm.grid = GridParams { bundle, depth_samples };
         // No early termination: its allowance would leave no budget at the smallest E_I.
         prm.min_transmittance = 0.0;
-        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let mut off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         if let Some((depth, share)) = limit {
             // An opaque wall over the left part of the image, at a depth inside the data.
             let z = (off.stats.near + depth * (off.stats.far - off.stats.near)) as f32;
@@ -663,8 +663,8 @@ proptest! {
                 .map(|k| if k % w < cut { z } else { f32::INFINITY })
                 .collect();
             prm.depth_limit = Some(std::sync::Arc::from(d));
+            off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         }
-        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         prm.adaptive = PlanParams { tolerance: Some(1.0), ..Default::default() }.strict();
         let probe = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         // Twice the median full-rate bound of the bundles that see particles.
