@@ -3,7 +3,7 @@
 //! `common::gpu`).
 mod common;
 
-use common::{cloud, cloud_tf, gpu, modes, shared_ddb, shared_pysph};
+use common::{cloud, cloud_tf, gpu, modes, orbit, shared_ddb, shared_pysph};
 use fluidcast_gpu::{Gpu, GpuError};
 use fluidcast_render::{render_adaptive, PlanParams, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel, Particles};
@@ -111,12 +111,7 @@ fn gpu_matches_cpu_where_the_plan_adapts() {
     let p = fluidcast_testkit::depth_ramp(20);
     for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
         let tf = fluidcast_testkit::depth_ramp_tf(alpha);
-        let mut cam = Camera::default();
-        let (lo, hi) = p.support_bounds();
-        cam.reset(lo.map(f64::from), hi.map(f64::from));
-        cam.azimuth(azimuth);
-        cam.elevation(3.0);
-        cam.orthogonalize_view_up();
+        let mut cam = orbit(&p, azimuth, 3.0);
         cam.zoom(1.2);
         cam.parallel_projection = parallel;
         let relaxed = PlanParams {

@@ -5,7 +5,7 @@ mod common;
 
 use std::collections::BTreeMap;
 
-use common::{cloud, cloud_tf, gpu, modes, shared_ddb, shared_pysph};
+use common::{cloud, cloud_tf, gpu, modes, orbit, shared_ddb, shared_pysph};
 use fluidcast_gpu::GpuDump;
 use fluidcast_render::{plan_adaptive, render_adaptive, AdaptivePlan, PlanParams, RenderParams};
 use fluidcast_sph::Particles;
@@ -273,17 +273,6 @@ fn faint_cloud() -> (Particles, TransferFunction) {
     let mut tf = cloud_tf();
     tf.unit_distance = 8.0;
     (cloud(3000, 21), tf)
-}
-
-/// A camera that frames the particles, turned by azimuth and elevation (degrees).
-fn orbit(p: &Particles, azimuth: f64, elevation: f64) -> Camera {
-    let mut cam = Camera::default();
-    let (a, b) = p.support_bounds();
-    cam.reset(a.map(f64::from), b.map(f64::from));
-    cam.azimuth(azimuth);
-    cam.elevation(elevation);
-    cam.orthogonalize_view_up();
-    cam
 }
 
 #[test]

@@ -152,3 +152,14 @@ pub fn differing_pixels(a: &fluidcast_image::Image, b: &fluidcast_image::Image) 
         .map(|(k, _)| (k as u32 % a.width, k as u32 / a.width))
         .collect()
 }
+
+/// A camera that frames the particles, turned by azimuth and elevation (degrees).
+pub fn orbit(p: &Particles, azimuth: f64, elevation: f64) -> Camera {
+    let mut cam = Camera::default();
+    let (a, b) = p.support_bounds();
+    cam.reset(a.map(f64::from), b.map(f64::from));
+    cam.azimuth(azimuth);
+    cam.elevation(elevation);
+    cam.orthogonalize_view_up();
+    cam
+}
