@@ -13,6 +13,15 @@ mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 # The tests that read ../shared/data fail, not skip, when it is missing (CI lays it beside the
 # clone; run elsewhere without it, unset this to skip those tests).
 export FLUIDCAST_REQUIRE_DATA="${FLUIDCAST_REQUIRE_DATA:-1}"
+# CI builds once, from a fresh clone: incremental caches would only take disk.
+if [ "${CI:-}" = true ]; then export CARGO_INCREMENTAL=0; fi
+# A fresh build and test run writes about 3 GiB (target/, build/, the venvs). Say so up front
+# when the disk is short: cargo's own message is a compiler crash that names no cause.
+avail_mib=$(( $(df -Pk . | awk 'NR==2 {print $4}') / 1024 ))
+if [ "$avail_mib" -lt 4096 ]; then
+  echo "scripts/test.sh: warning: only ${avail_mib} MiB free on this disk; a fresh build" \
+    "and test run needs about 3 GiB, so it may fail with 'No space left on device'" >&2
+fi
 bash scripts/setup_system.sh
 bash scripts/setup_python.sh
 # Test reports of this run only (scripts/check_test_reports.py reads them at the end).
