@@ -591,6 +591,44 @@ fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
     }
 }
 
+/// The plan's counts are those of its cells, summed over every bundle: cells per level and
+/// super-pixels as `cell_levels` holds them, and surface cells (forced to full rate) present
+/// with the surface rule, absent without it. A block of one constant value: its inside
+/// becomes super-pixels, its boundary particles are surface particles.
+#[test]
+fn plan_stats_count_the_cells_of_each_kind() {
+    let mut block = fluidcast_testkit::depth_ramp(20);
+    block.values.iter_mut().for_each(|v| *v = 0.1);
+    let (alpha, _, azimuth, parallel) = fluidcast_testkit::DEPTH_RAMP_CASES[0];
+    let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+    let cam = camera_for(&block, azimuth, 3.0, parallel);
+    let mut prm = params(90, 70, Some(0.004));
+    prm.grid.depth_samples = 64;
+    let mut counts = Vec::new();
+    for surface_rule in [true, false] {
+        prm.adaptive.surface_cells = surface_rule;
+        let a = fluidcast_render::plan_adaptive(&block, None, &cam, &tf, &prm).unwrap();
+        let (levels, st) = (&a.plan.cell_levels, &a.plan.stats);
+        assert!(a.grid.bundle_count() > 1);
+        assert_eq!(st.cells, levels.len() as u64);
+        for (l, &n) in st.level_cells.iter().enumerate() {
+            let want = levels.iter().filter(|&&x| x as usize == l).count() as u64;
+            assert_eq!(n, want, "level {l}");
+        }
+        let sp = levels
+            .iter()
+            .filter(|&&x| x == fluidcast_render::SamplingPlan::SUPERPIXEL)
+            .count() as u64;
+        assert_eq!(st.superpixel_cells, sp);
+        assert!(sp > 0, "the block's inside becomes super-pixels");
+        assert!(st.surface_cells <= st.level_cells[0]);
+        assert_eq!(st.surface_cells > 0, surface_rule, "{st:?}");
+        counts.push(st.clone());
+    }
+    eprintln!("with and without the surface rule: {counts:?}");
+    assert!(counts[0].level_cells[0] > counts[1].level_cells[0]);
+}
+
 /// The transfer-function range of a field over the particles (CSPH: the values; SPH and
 /// density: the field sampled at the particles).
 fn field_range(p: &Particles, kernel: Kernel, field: FieldKind) -> (f64, f64) {

@@ -120,3 +120,37 @@ fn depth_limit_at_reads_row_major_pixels() {
     }
     assert_eq!(size(w, h).depth_limit_at(2, 1), f64::INFINITY);
 }
+
+#[test]
+fn plan_tolerance_and_relaxation_lie_in_zero_to_one() {
+    use fluidcast_render::{PlanError, PlanParams};
+    let plan = |tolerance, relax| PlanParams {
+        tolerance,
+        relax,
+        ..Default::default()
+    };
+    for (e, r) in [(None, 0.0), (Some(0.0), 1.0), (Some(1.0), 0.5), (None, 1.0)] {
+        assert!(plan(e, r).validate().is_ok(), "{e:?} {r}");
+    }
+    for e in [1.5, -0.01, f64::NAN] {
+        assert!(matches!(
+            plan(Some(e), 1.0).validate(),
+            Err(PlanError::Tolerance(_))
+        ));
+    }
+    for r in [1.01, -0.5, f64::NAN] {
+        assert!(matches!(plan(None, r).validate(), Err(PlanError::Relax(_))));
+    }
+    // The renderer refuses them too, naming the value.
+    let p = fluidcast_testkit::depth_ramp(4);
+    let tf = fluidcast_testkit::depth_ramp_tf(0.2);
+    let cam = fluidcast_view::Camera::default();
+    let prm = RenderParams {
+        adaptive: plan(Some(1.5), 1.0),
+        ..size(8, 8)
+    };
+    let e = fluidcast_render::render_adaptive(&p, None, &cam, &tf, &prm)
+        .err()
+        .map(|e| e.to_string());
+    assert!(e.as_deref().is_some_and(|e| e.contains("1.5")), "{e:?}");
+}
