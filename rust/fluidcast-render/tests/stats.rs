@@ -1,0 +1,74 @@
+//! What the renderers report beside the image: the same composited-sample count and depth
+//! range wherever they take the same samples, the particles in view, and stage timings that
+//! are non-negative, in order and add up to no more than the total.
+
+mod common;
+use common::{cloud, cloud_view};
+use fluidcast_render::{
+    render_adaptive, render_object_space, render_reference, RenderParams, RenderStats,
+};
+use fluidcast_sph::FieldKind;
+
+/// The stage names in order, each time finite and non-negative, the total positive and at
+/// least the sum of the others (they are disjoint parts of it).
+fn check_stages(name: &str, s: &RenderStats, want: &[&str]) {
+    let names: Vec<&str> = s.stages.iter().map(|x| x.0).collect();
+    assert_eq!(names, want, "{name}");
+    for &(stage, t) in &s.stages {
+        assert!(t.is_finite() && t >= 0.0, "{name} {stage}: {t} ms");
+    }
+    let total = s.stage("total").unwrap();
+    let parts: f64 = s
+        .stages
+        .iter()
+        .filter(|x| x.0 != "total")
+        .map(|x| x.1)
+        .sum();
+    assert!(total > 0.0, "{name}: total {total} ms");
+    assert!(
+        parts <= total,
+        "{name}: stages {parts} ms > total {total} ms"
+    );
+}
+
+#[test]
+fn renderers_report_the_same_samples_and_their_stages() {
+    let mut p = cloud(150, 3);
+    // Ten particles far off to the side: outside the view, never counted as visible.
+    for k in 0..10 {
+        p.positions.push([40.0 + k as f32, 0.0, 0.0]);
+        p.radii.push(0.2);
+        p.volumes.push(0.002);
+        p.masses.push(1.0);
+        p.values.push(0.0);
+    }
+    let (cam, tf) = cloud_view(30.0, 15.0, false, FieldKind::Csph);
+    let mut prm = RenderParams {
+        width: 40,
+        height: 30,
+        ..Default::default()
+    };
+    prm.adaptive.tolerance = None;
+    let (ri, rs) = render_reference(&p, &cam, &tf, &prm).unwrap();
+    let a = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let (oi, os) = render_object_space(&p, &cam, &tf, &prm).unwrap();
+    assert_eq!(a.image.rgba, ri.rgba);
+    assert!(oi.rgba.iter().any(|c| c[3] > 0.05));
+
+    check_stages("reference", &rs, &["bin", "raycast", "total"]);
+    check_stages("adaptive", &a.stats, &["grid", "adapt", "raycast", "total"]);
+    check_stages("object space", &os, &["grid", "raycast", "total"]);
+    // One sample per composited (non-empty) depth step: the three take the same samples.
+    let ref_samples = rs.samples;
+    assert!(ref_samples > 1000, "{ref_samples}");
+    assert_eq!(a.stats.samples, ref_samples);
+    assert_eq!(os.samples, ref_samples);
+    for s in [&rs, &a.stats, &os] {
+        assert_eq!((s.width, s.height, s.particles), (40, 30, 160));
+        assert_eq!(s.depth_samples, rs.depth_samples);
+        assert_eq!((s.near, s.far), (rs.near, rs.far));
+    }
+    assert!(rs.depth_samples > 10 && rs.near < rs.far);
+    assert_eq!(rs.particles_visible, 150);
+    assert_eq!(a.stats.particles_visible, 150);
+}
