@@ -804,6 +804,44 @@ mod tests {
         assert!((t - (-1.0f64).exp()).abs() < 1e-15);
     }
 
+    /// Coverage keeps a relative margin of 1e-9 below the support (so that rounding never
+    /// claims a covered part, [`Bundle::covered_by`]'s rule): a disc whose far corner lies
+    /// half a margin inside covers nothing, one twice a margin inside covers, in each
+    /// projection.
+    #[test]
+    fn coverage_keeps_its_margin_at_the_support_edge() {
+        for parallel in [false, true] {
+            let camera = Camera {
+                parallel_projection: parallel,
+                parallel_scale: 0.6,
+                ..Camera::default()
+            };
+            let frame = camera.frame(64, 48).unwrap();
+            let bundle = Bundle::from_pixels(&frame, [10, 14, 20, 23]);
+            let parts = Parts::new(&bundle.split(&frame, COVER_SPLIT));
+            let z = 2.0;
+            let [x0, x1, y0, y1] = bundle.rect_at(z);
+            // Centred on one corner: the far corner is the opposite one.
+            let d2 = (x1 - x0).powi(2) + (y1 - y0).powi(2);
+            for (inside, covered) in [(0.5e-9, false), (2e-9, true)] {
+                let h = (d2 / (1.0 - inside)).sqrt();
+                let p = ViewParticle {
+                    c: [x0, y0, z],
+                    h,
+                    v: 1.0,
+                    a: 1.0,
+                    m: 1.0,
+                };
+                assert_eq!(bundle.covered_by(&p, z), covered, "{parallel} {inside}");
+                assert_eq!(
+                    parts.covered(&p, z) == parts.all,
+                    covered,
+                    "{parallel} {inside}"
+                );
+            }
+        }
+    }
+
     /// The property below sees partial coverage (some parts, not all) often.
     #[test]
     fn parts_cover_partially_often() {
