@@ -839,6 +839,19 @@ mod tests {
                     "{parallel} {inside}"
                 );
             }
+            // A large disc (H² = 7 view units²) whose centre lies 1.7 units beyond the far
+            // corner in x and in y (1.7² + 1.7² = 5.78 < 7): it covers every part, and the
+            // early exit (nearest column and row) must not skip it.
+            let c = [x1 - 1.7, y1 - 1.7, z];
+            let p = ViewParticle {
+                c,
+                h: 7f64.sqrt(),
+                v: 1.0,
+                a: 1.0,
+                m: 1.0,
+            };
+            assert!(bundle.covered_by(&p, z));
+            assert_eq!(parts.covered(&p, z), parts.all, "{parallel}");
         }
     }
 
