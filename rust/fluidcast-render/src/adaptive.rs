@@ -428,6 +428,47 @@ mod tests {
         }
     }
 
+    /// The columns (rows) whose line x = o + z·d meets [c − H, c + H] somewhere in the
+    /// particle's depth extent in front of the eye, by solving for the depths where it does
+    /// (not by the footprint's end-point test); `grow` widens H.
+    fn lines_meeting(lines: &[(f64, f64)], c: f64, p: &ViewParticle, grow: f64) -> Vec<usize> {
+        let (za, zb) = ((p.c[2] - p.h).max(0.0), (p.c[2] + p.h).max(0.0));
+        let h = p.h * (1.0 + grow);
+        let meets = |&(o, d): &(f64, f64)| {
+            if d == 0.0 {
+                return (o - c).abs() <= h;
+            }
+            let (s0, s1) = ((c - h - o) / d, (c + h - o) / d);
+            s0.min(s1).max(za) <= s1.max(s0).min(zb)
+        };
+        (0..lines.len()).filter(|&k| meets(&lines[k])).collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+        /// The footprint is tight: exactly the columns and rows whose lines meet the
+        /// support's extent, up to the rounding slack (a footprint grown by a column still
+        /// renders right, but scatters for nothing).
+        #[test]
+        fn footprint_is_the_lines_that_meet_the_support(
+            parallel in any::<bool>(),
+            bx in 0u32..8,
+            by in 0u32..6,
+            c in prop::array::uniform3(-1.5f64..1.5),
+            h in 0.001f64..0.8,
+        ) {
+            let rays = bundle_rays(parallel, 8 * bx, 8 * by);
+            let lines = BundleLines::new(&rays, 8);
+            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let (cols, rows) = lines.footprint(&p);
+            for (got, l, c) in [(cols, &lines.x, p.c[0]), (rows, &lines.y, p.c[1])] {
+                let (inner, outer) = (lines_meeting(l, c, &p, -1e-6), lines_meeting(l, c, &p, 1e-6));
+                prop_assert!(inner.iter().all(|k| got.contains(k)), "{:?} misses {:?}", got, inner);
+                prop_assert!(got.clone().all(|k| outer.contains(&k)), "{:?} beyond {:?}", got, outer);
+            }
+        }
+    }
+
     /// A small particle in front of the camera reaches a few of the bundle's rays, not all.
     #[test]
     fn footprint_of_a_small_particle_is_small() {
