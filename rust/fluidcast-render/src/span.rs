@@ -398,3 +398,65 @@ fn lane_by_lane<S: pulp::Simd>(s: S, q: S::f64s, shape: impl Fn(f64) -> f64) -> 
     }
     s.partial_load_f64s(lanes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fluidcast_view::Camera;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(300))]
+        /// `near` marks exactly the lanes in `cols` whose ray is live and passes inside the
+        /// support (as [`Ray::passage`] decides), with each lane's closest approach, and is
+        /// `None` when it marks none. A 11-pixel-wide bundle: its second lane group has five
+        /// padding lanes, never marked.
+        #[test]
+        fn near_marks_exactly_the_live_lanes_in_reach(
+            parallel in any::<bool>(),
+            c in prop::array::uniform3(-0.6f64..0.6),
+            depth in 0.5f64..3.0,
+            h in 0.01f64..0.4,
+            (c0, c1) in (0usize..11, 0usize..12),
+            live in prop::collection::vec(any::<bool>(), 16),
+            j in 0usize..3,
+        ) {
+            let camera = Camera { parallel_projection: parallel, parallel_scale: 0.6, ..Camera::default() };
+            let frame = camera.frame(64, 48).unwrap();
+            let (x0, y0, w) = (20u32, 17u32, 11usize);
+            let rays: Vec<Ray> = (0..3u32)
+                .flat_map(|j| (0..w as u32).map(move |i| (x0 + i, y0 + j)))
+                .map(|(i, j)| Ray::through_pixel(&frame, i, j))
+                .collect();
+            let bundle = BundleRays::new(&rays, w);
+            let cols = c0.min(c1)..c0.max(c1);
+            // The particle near the middle ray of row j, at the given depth.
+            let mid = &rays[j * w + 5];
+            let p = ViewParticle {
+                c: [0, 1, 2].map(|k| mid.o[k] + depth * mid.d[k] + c[k] * h * 3.0),
+                h, v: 1.0, a: 1.0, m: 1.0,
+            };
+            for g in 0..2 {
+                let got = bundle.rows[j * bundle.groups + g].near(&p, &cols, g, &live[g * LANES..][..LANES]);
+                let mut any = false;
+                for l in 0..LANES {
+                    let col = g * LANES + l;
+                    let ray = (col < w).then(|| &rays[j * w + col]);
+                    let pass = ray.and_then(|r| r.passage(&p));
+                    let on = cols.contains(&col) && live[col] && pass.is_some();
+                    any |= on;
+                    if let (Some(n), true) = (&got, on) {
+                        let (t, r2) = ray.map(|r| r.closest_approach(&p)).unwrap_or_default();
+                        prop_assert!((n.t[l] - t).abs() <= 1e-12 * t.abs().max(1.0));
+                        prop_assert!((n.r2[l] - r2).abs() <= 1e-12 * h * h);
+                        prop_assert_eq!(n.dd[l], ray.map_or(1.0, |r| r.dd));
+                    }
+                    if let Some(n) = &got {
+                        prop_assert_eq!(n.mask[l], if on { 1.0 } else { 0.0 }, "group {} lane {}", g, l);
+                    }
+                }
+                prop_assert_eq!(got.is_some(), any, "group {}", g);
+            }
+        }
+    }
+}
