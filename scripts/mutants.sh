@@ -14,6 +14,8 @@
 # its build and one test, a missed one the whole suite (about 40 s on 2 cores; about 1,000
 # mutants in plan + render). JOBS=N runs N at a time (each in its own copy of the tree);
 # SHARD=k/n runs every n-th mutant from the k-th (round robin), to spread a crate over runs.
+# A mutant whose tests run past TIMEOUT seconds (default 150, four times the whole suite) is
+# stopped and listed as timed out: the suite did not pass it, but it is counted apart.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
@@ -27,7 +29,7 @@ for crate in "${crates[@]}"; do
   out="mutants.out/$crate${SHARD:+-shard-${SHARD//\//-of-}}"
   mkdir -p "$out"
   args=(-f "$dir/src/*.rs" --test-package "$crate" --test-package fluidcast-render
-        -j "${JOBS:-1}" -o "$out" --timeout 600 --test-tool nextest)
+        -j "${JOBS:-1}" -o "$out" --timeout "${TIMEOUT:-150}" --test-tool nextest)
   [ -z "${FILTER:-}" ] || args+=(-F "$FILTER")
   [ -z "${SHARD:-}" ] || args+=(--shard "$SHARD" --sharding round-robin)
   # cargo mutants exits 2 when mutants survive, 3 when some time out: the score below is the

@@ -505,6 +505,88 @@ fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
     }
 }
 
+/// Cell merging (Sec. 6.2) joins only what samples alike, and all of it: each bundle's spans
+/// cover its cells in order; a span is one cell, or 2^k consecutive cells of one level l > 0
+/// with k <= l, its first cell's depth index a multiple of 2^k (so a span never samples more
+/// than D_z depths); a super-pixel stands alone; and no two neighbouring spans could still be
+/// joined (same level and size below 2^l, aligned, adjacent). Strict and relaxed plans on
+/// the depth ramp, where many cells coarsen.
+#[test]
+fn merged_spans_are_aligned_runs_of_one_level_and_maximal() {
+    let p = fluidcast_testkit::depth_ramp(20);
+    let mut merged = 0;
+    for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
+        let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+        let cam = camera_for(&p, azimuth, 3.0, parallel);
+        for (dz, strict) in [(8, true), (16, true), (8, false), (16, false)] {
+            let mut prm = params(96, 72, Some(e));
+            prm.grid.depth_samples = dz;
+            if strict {
+                prm.adaptive = prm.adaptive.strict();
+            }
+            let a = fluidcast_render::plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+            let m = check_spans(&a.grid, &a.plan);
+            eprintln!(
+                "D_z {dz}, strict {strict}: {m} of {} cells merged",
+                a.grid.cells.len()
+            );
+            merged += m;
+        }
+    }
+    eprintln!("cells merged into a neighbour: {merged}");
+    assert!(merged > 100, "merging hardly happens: {merged}");
+}
+
+/// Checks [`merged_spans_are_aligned_runs_of_one_level_and_maximal`]'s rules on every
+/// bundle of a plan; returns the number of cells merged into a neighbour.
+fn check_spans(
+    grid: &fluidcast_grid::PerspectiveGrid,
+    plan: &fluidcast_render::SamplingPlan,
+) -> u64 {
+    let sp_level = fluidcast_render::SamplingPlan::SUPERPIXEL;
+    let mut merged = 0u64;
+    for b in 0..grid.bundle_count() {
+        let first = grid.bundle_first_cell(b);
+        let n = grid.bundle_cells(b).len();
+        let spans = plan.bundle_spans(b);
+        let mut next = first;
+        for (k, s) in spans.iter().enumerate() {
+            let (f, c) = (s.first as usize, s.count as usize);
+            assert_eq!(f, next, "bundle {b}: spans out of order");
+            next += c;
+            assert!(c.is_power_of_two());
+            let z0 = grid.cells[f].z as usize;
+            for i in 0..c {
+                assert_eq!(grid.cells[f + i].z as usize, z0 + i, "bundle {b}: a gap");
+            }
+            if s.superpixel.is_some() {
+                assert_eq!(c, 1);
+                assert_eq!(plan.cell_levels[f], sp_level);
+                continue;
+            }
+            assert!(plan.cell_levels[f..f + c].iter().all(|&l| l == s.level));
+            assert!(
+                c == 1 || (s.level > 0 && c <= 1 << s.level),
+                "bundle {b}: {s:?}"
+            );
+            assert_eq!(z0 % c, 0, "bundle {b}: {s:?} not aligned");
+            merged += (c - 1) as u64;
+            if let Some(t) = spans.get(k + 1) {
+                let joinable = t.superpixel.is_none()
+                    && t.level == s.level
+                    && t.count as usize == c
+                    && c < 1 << s.level
+                    && z0 % (2 * c) == 0
+                    && grid.cells[t.first as usize].z as usize == z0 + c;
+                assert!(!joinable, "bundle {b}: {s:?} and {t:?} left apart");
+            }
+        }
+        assert_eq!(next, first + n, "bundle {b}: spans miss cells");
+    }
+    assert_eq!(plan.stats.merged_cells, merged);
+    merged
+}
+
 /// The AOVs hold the plan's numbers at the right pixels: in strict mode every pixel's error
 /// against full rate lies within its `error_bound`; `level` is the mean level of the pixel's
 /// bundle's sampled cells and `superpixel` their share drawn as super-pixels, counted here
