@@ -14,6 +14,7 @@
 # its build and one test, a missed one the whole suite (about 40 s on 2 cores; about 1,000
 # mutants in plan + render). JOBS=N runs N at a time (each in its own copy of the tree);
 # SHARD=k/n runs every n-th mutant from the k-th (round robin), to spread a crate over runs.
+# ITERATE=1 retests only the mutants the last run of the same crate (and shard) left alive.
 # A mutant whose tests run past TIMEOUT seconds (default 150, four times the whole suite) is
 # stopped and listed as timed out: the suite did not pass it, but it is counted apart.
 set -euo pipefail
@@ -32,6 +33,8 @@ for crate in "${crates[@]}"; do
         -j "${JOBS:-1}" -o "$out" --timeout "${TIMEOUT:-150}" --test-tool nextest)
   [ -z "${FILTER:-}" ] || args+=(-F "$FILTER")
   [ -z "${SHARD:-}" ] || args+=(--shard "$SHARD" --sharding round-robin)
+  # ITERATE=1: test again only what the last run in this output folder did not catch.
+  [ -z "${ITERATE:-}" ] || args+=(--iterate)
   # cargo mutants exits 2 when mutants survive, 3 when some time out: the score below is the
   # result. Anything else (4: the unmutated tests fail) is an error.
   rc=0
@@ -44,4 +47,8 @@ for crate in "${crates[@]}"; do
   echo "$crate: $caught of $viable viable mutants caught" \
     "($(( viable ? 100 * caught / viable : 0 )) %); $missed missed (see $m/missed.txt)," \
     "$timeout timed out, $unviable unviable"
+  if [ -f "$m/previously_caught.txt" ]; then
+    echo "  (ITERATE: these counts are of the mutants left alive before;" \
+      "$(wc -l < "$m/previously_caught.txt") were caught or unviable in earlier runs)"
+  fi
 done

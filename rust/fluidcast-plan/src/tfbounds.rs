@@ -123,6 +123,30 @@ impl TfBounds {
 mod tests {
     use super::*;
 
+    /// Every query of the sparse table equals the min and max counted over the range, for
+    /// every range of sequences of 1 to 40 values (the minimum or maximum anywhere in it).
+    #[test]
+    fn range_table_answers_every_range_exactly() {
+        let mut s = 7u32;
+        for n in 1..=40usize {
+            let v: Vec<f64> = (0..n)
+                .map(|_| {
+                    s = s.wrapping_mul(1664525).wrapping_add(1013904223);
+                    (s >> 8) as f64 / (1u32 << 24) as f64
+                })
+                .collect();
+            let t = RangeTable::new(&v);
+            for a in 0..=n {
+                assert_eq!(t.query(a, a), None);
+                for b in a + 1..=n {
+                    let lo = v[a..b].iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = v[a..b].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    assert_eq!(t.query(a, b), Some((lo, hi)), "n {n}, {a}..{b}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn bounds_contain_dense_samples_and_are_tight_at_points() {
         let mut tf = TransferFunction::preset("Cool to Warm").unwrap();
