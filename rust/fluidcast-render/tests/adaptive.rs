@@ -513,8 +513,21 @@ fn strict_plan_bounds_coarse_samples_along_a_depth_ramp() {
 /// the depth ramp, where many cells coarsen.
 #[test]
 fn merged_spans_are_aligned_runs_of_one_level_and_maximal() {
-    let p = fluidcast_testkit::depth_ramp(20);
     let mut merged = 0;
+    for (what, a) in ramp_plans() {
+        let m = check_spans(&a.grid, &a.plan);
+        eprintln!("{what}: {m} of {} cells merged", a.grid.cells.len());
+        merged += m;
+    }
+    eprintln!("cells merged into a neighbour: {merged}");
+    assert!(merged > 100, "merging hardly happens: {merged}");
+}
+
+/// Strict and relaxed plans of the depth ramp's views at D_z = 8 and 16: many cells per
+/// bundle, many of them coarsened.
+fn ramp_plans() -> Vec<(String, fluidcast_render::AdaptivePlan)> {
+    let p = fluidcast_testkit::depth_ramp(20);
+    let mut out = Vec::new();
     for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
         let tf = fluidcast_testkit::depth_ramp_tf(alpha);
         let cam = camera_for(&p, azimuth, 3.0, parallel);
@@ -525,16 +538,43 @@ fn merged_spans_are_aligned_runs_of_one_level_and_maximal() {
                 prm.adaptive = prm.adaptive.strict();
             }
             let a = fluidcast_render::plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
-            let m = check_spans(&a.grid, &a.plan);
-            eprintln!(
-                "D_z {dz}, strict {strict}: {m} of {} cells merged",
-                a.grid.cells.len()
-            );
-            merged += m;
+            out.push((format!("azimuth {azimuth}, D_z {dz}, strict {strict}"), a));
         }
     }
-    eprintln!("cells merged into a neighbour: {merged}");
-    assert!(merged > 100, "merging hardly happens: {merged}");
+    out
+}
+
+/// Each bundle's summary counts its own cells: the shares at full rate, adapted in depth and
+/// drawn as super-pixels, and the mean level of the sampled ones (what the AOVs show).
+#[test]
+fn bundle_summaries_count_their_cells() {
+    let sp = fluidcast_render::SamplingPlan::SUPERPIXEL;
+    let mut mixed = 0;
+    for (what, a) in ramp_plans() {
+        for (b, s) in a.plan.summaries.iter().enumerate() {
+            let first = a.grid.bundle_first_cell(b);
+            let levels = &a.plan.cell_levels[first..first + a.grid.bundle_cells(b).len()];
+            let n = levels.len().max(1) as f32;
+            let count = |f: &dyn Fn(u8) -> bool| levels.iter().filter(|&&l| f(l)).count();
+            let (full, sps) = (count(&|l| l == 0), count(&|l| l == sp));
+            let adapted = levels.len() - full - sps;
+            let lsum: u32 = levels.iter().filter(|&&l| l != sp).map(|&l| l as u32).sum();
+            let mean = lsum as f32 / (full + adapted).max(1) as f32;
+            let want = [full as f32 / n, adapted as f32 / n, sps as f32 / n, mean];
+            let got = [s.full, s.adapted, s.superpixel, s.mean_level];
+            for (g, w) in got.iter().zip(want) {
+                assert!(
+                    (g - w).abs() < 1e-6,
+                    "{what}, bundle {b}: {got:?} vs {want:?}"
+                );
+            }
+            mixed += usize::from(full > 0 && adapted > 0);
+        }
+    }
+    assert!(
+        mixed > 20,
+        "only {mixed} bundles mix full-rate and adapted cells"
+    );
 }
 
 /// Checks [`merged_spans_are_aligned_runs_of_one_level_and_maximal`]'s rules on every
