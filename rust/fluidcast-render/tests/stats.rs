@@ -8,6 +8,7 @@ use fluidcast_render::{
     render_adaptive, render_object_space, render_reference, RenderParams, RenderStats,
 };
 use fluidcast_sph::FieldKind;
+use std::time::Instant;
 
 /// The stage names in order, each time finite and non-negative, the total positive and at
 /// least the sum of the others (they are disjoint parts of it).
@@ -71,4 +72,31 @@ fn renderers_report_the_same_samples_and_their_stages() {
     assert!(rs.depth_samples > 10 && rs.near < rs.far);
     assert_eq!(rs.particles_visible, 150);
     assert_eq!(a.stats.particles_visible, 150);
+}
+
+/// The stage times are milliseconds of this clock: the reported total lies within the wall
+/// time the caller measured around the render, and (timings being noisy, in one of five
+/// tries) it is most of it.
+#[test]
+fn stage_times_are_milliseconds_of_the_render() {
+    let p = cloud(400, 9);
+    let (cam, tf) = cloud_view(30.0, 15.0, false, FieldKind::Csph);
+    let prm = RenderParams {
+        width: 120,
+        height: 90,
+        ..Default::default()
+    };
+    let mut ratios = Vec::new();
+    for _ in 0..5 {
+        let t = Instant::now();
+        let (_, s) = render_reference(&p, &cam, &tf, &prm).unwrap();
+        let wall = t.elapsed().as_secs_f64() * 1e3;
+        let total = s.stage("total").unwrap();
+        assert!(total <= wall, "total {total} ms > wall {wall} ms");
+        ratios.push(total / wall);
+        if total >= 0.5 * wall {
+            return;
+        }
+    }
+    panic!("the reported total is never most of the wall time: {ratios:?}");
 }
