@@ -72,6 +72,16 @@ fn renderers_report_the_same_samples_and_their_stages() {
     assert!(rs.depth_samples > 10 && rs.near < rs.far);
     assert_eq!(rs.particles_visible, 150);
     assert_eq!(a.stats.particles_visible, 150);
+    // The grid renderer's counts: 5 x 4 bundles of 8 x 8 pixels, its cells and references.
+    assert_eq!(a.stats.bundles, 20);
+    assert_eq!(a.stats.cells, a.grid.cells.len() as u64);
+    assert_eq!(a.stats.pairs, a.grid.refs.len() as u64);
+    assert!(
+        a.stats.cells >= 20 && a.stats.pairs > a.stats.cells,
+        "{:?}",
+        a.stats
+    );
+    assert_eq!(a.stats.plan.as_ref(), Some(&a.plan.stats));
 }
 
 /// The stage times are milliseconds of this clock: the reported total lies within the wall
