@@ -110,3 +110,24 @@ fn stage_times_are_milliseconds_of_the_render() {
     }
     panic!("the reported total is never most of the wall time: {ratios:?}");
 }
+
+/// For SPH sums and density as for CSPH, the object-space baseline takes a sample only where
+/// a particle reaches (a sum of nothing is no sample, not a zero): it composites as many
+/// samples as the reference.
+#[test]
+fn object_space_samples_only_where_a_particle_reaches() {
+    let p = cloud(150, 4);
+    for field in [FieldKind::Sph, FieldKind::Density] {
+        let (cam, tf) = cloud_view(-20.0, 25.0, false, field);
+        let prm = RenderParams {
+            width: 40,
+            height: 30,
+            field,
+            ..Default::default()
+        };
+        let (_, rs) = render_reference(&p, &cam, &tf, &prm).unwrap();
+        let (_, os) = render_object_space(&p, &cam, &tf, &prm).unwrap();
+        assert!(rs.samples > 1000, "{field:?}: {}", rs.samples);
+        assert_eq!(os.samples, rs.samples, "{field:?}");
+    }
+}
