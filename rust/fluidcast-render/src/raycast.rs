@@ -203,3 +203,69 @@ impl Compositor {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A homogeneous segment of extinction `sigma` (per view-depth unit) and colour `c` over
+    /// `len`: premultiplied (c (1 − T), T) with T = exp(−σ len), in closed form.
+    fn homogeneous(c: [f64; 3], sigma: f64, len: f64) -> [f64; 4] {
+        let t = (-sigma * len).exp();
+        [c[0] * (1.0 - t), c[1] * (1.0 - t), c[2] * (1.0 - t), t]
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-12
+    }
+
+    /// A segment (a super-pixel's span) that reaches past opaque geometry keeps exactly the
+    /// part in front of it: the same medium over the shorter length, and the ray ends there.
+    #[test]
+    fn a_segment_cut_by_the_limit_keeps_its_front_part() {
+        let c = [0.9, 0.4, 0.1];
+        for sigma in [0.3, 2.0, 7.0] {
+            for (z0, z1, limit) in [(1.0, 3.0, 1.8), (0.5, 0.9, 0.55), (2.0, 6.0, 5.9)] {
+                let mut comp = Compositor::new(limit);
+                comp.add(homogeneous(c, sigma, z1 - z0), (z0, z1), 0.0);
+                let want = homogeneous(c, sigma, limit - z0);
+                for k in 0..3 {
+                    assert!(close(comp.color[k], want[k]), "{sigma} {limit}: {comp:?}");
+                }
+                assert!(close(comp.trans, want[3]), "{sigma} {limit}: {comp:?}");
+                assert!(comp.done);
+            }
+        }
+        // Nothing but emission (T = 1): the front fraction of it.
+        let mut comp = Compositor::new(2.5);
+        comp.add([0.2, 0.1, 0.05, 1.0], (2.0, 4.0), 0.0);
+        assert_eq!((comp.color, comp.trans), ([0.05, 0.025, 0.0125], 1.0));
+        assert!(comp.done);
+    }
+
+    /// In front of the limit a segment is composited whole (over what came before), at or
+    /// beyond it not at all; the ray stops once transmittance falls below the minimum, and
+    /// its depth is where it first fell below ½.
+    #[test]
+    fn segments_composite_front_to_back_up_to_the_limit() {
+        let mut comp = Compositor::new(10.0);
+        let a = homogeneous([1.0, 0.0, 0.0], 0.5, 1.0);
+        let b = homogeneous([0.0, 1.0, 0.0], 1.0, 1.0);
+        comp.add(a, (1.0, 2.0), 0.0);
+        assert!(!comp.done && comp.depth.is_infinite());
+        comp.add(b, (2.0, 3.0), 0.0);
+        assert!(close(comp.color[0], a[0]) && close(comp.color[1], a[3] * b[1]));
+        assert!(close(comp.trans, a[3] * b[3]));
+        assert!(comp.trans < 0.5 && !comp.done);
+        assert_eq!(comp.depth, 2.0);
+        comp.add(b, (3.0, 4.0), 0.1);
+        assert!(comp.done, "transmittance {} below 0.1", comp.trans);
+        assert_eq!(comp.depth, 2.0);
+        let (before, t) = (comp.color, comp.trans);
+        let mut beyond = Compositor::new(3.0);
+        beyond.add(a, (3.0, 4.0), 0.0);
+        assert_eq!((beyond.color, beyond.trans), ([0.0; 3], 1.0));
+        assert!(beyond.done);
+        assert_eq!((comp.color, comp.trans), (before, t));
+    }
+}
