@@ -229,8 +229,8 @@ mod tests {
                 let mut comp = Compositor::new(limit);
                 comp.add(homogeneous(c, sigma, z1 - z0), (z0, z1), 0.0);
                 let want = homogeneous(c, sigma, limit - z0);
-                for k in 0..3 {
-                    assert!(close(comp.color[k], want[k]), "{sigma} {limit}: {comp:?}");
+                for (got, w) in comp.color.iter().zip(want) {
+                    assert!(close(*got, w), "{sigma} {limit}: {comp:?}");
                 }
                 assert!(close(comp.trans, want[3]), "{sigma} {limit}: {comp:?}");
                 assert!(comp.done);

@@ -616,7 +616,7 @@ fn check_spans(
                     && t.level == s.level
                     && t.count as usize == c
                     && c < 1 << s.level
-                    && z0 % (2 * c) == 0
+                    && z0.is_multiple_of(2 * c)
                     && grid.cells[t.first as usize].z as usize == z0 + c;
                 assert!(!joinable, "bundle {b}: {s:?} and {t:?} left apart");
             }
