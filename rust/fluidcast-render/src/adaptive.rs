@@ -376,9 +376,11 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(400))]
         /// The footprint holds every ray that enters the support (the exact test) at a depth
         /// in front of the eye, where samples lie, for particles anywhere, the eye inside the
-        /// support included.
+        /// support included. And it is tight: exactly the columns and rows whose lines meet
+        /// the support's extent ([`lines_meeting`]), up to the rounding slack (a footprint
+        /// grown by a column still renders right, but scatters for nothing).
         #[test]
-        fn footprint_holds_every_ray_that_enters(
+        fn footprint_holds_every_ray_that_enters_and_no_more(
             parallel in any::<bool>(),
             bx in 0u32..8,
             by in 0u32..6,
@@ -394,6 +396,11 @@ mod tests {
                     prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
                         "ray {} enters but lies outside {:?} × {:?}", r, cols, rows);
                 }
+            }
+            for (got, l, c) in [(cols, &lines.x, p.c[0]), (rows, &lines.y, p.c[1])] {
+                let (inner, outer) = (lines_meeting(l, c, &p, -1e-6), lines_meeting(l, c, &p, 1e-6));
+                prop_assert!(inner.iter().all(|k| got.contains(k)), "{:?} misses {:?}", got, inner);
+                prop_assert!(got.clone().all(|k| outer.contains(&k)), "{:?} beyond {:?}", got, outer);
             }
         }
     }
@@ -442,31 +449,6 @@ mod tests {
             s0.min(s1).max(za) <= s1.max(s0).min(zb)
         };
         (0..lines.len()).filter(|&k| meets(&lines[k])).collect()
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(400))]
-        /// The footprint is tight: exactly the columns and rows whose lines meet the
-        /// support's extent, up to the rounding slack (a footprint grown by a column still
-        /// renders right, but scatters for nothing).
-        #[test]
-        fn footprint_is_the_lines_that_meet_the_support(
-            parallel in any::<bool>(),
-            bx in 0u32..8,
-            by in 0u32..6,
-            c in prop::array::uniform3(-1.5f64..1.5),
-            h in 0.001f64..0.8,
-        ) {
-            let rays = bundle_rays(parallel, 8 * bx, 8 * by);
-            let lines = BundleLines::new(&rays, 8);
-            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
-            let (cols, rows) = lines.footprint(&p);
-            for (got, l, c) in [(cols, &lines.x, p.c[0]), (rows, &lines.y, p.c[1])] {
-                let (inner, outer) = (lines_meeting(l, c, &p, -1e-6), lines_meeting(l, c, &p, 1e-6));
-                prop_assert!(inner.iter().all(|k| got.contains(k)), "{:?} misses {:?}", got, inner);
-                prop_assert!(got.clone().all(|k| outer.contains(&k)), "{:?} beyond {:?}", got, outer);
-            }
-        }
     }
 
     /// A small particle in front of the camera reaches a few of the bundle's rays, not all.
