@@ -548,19 +548,10 @@ fn ramp_plans() -> Vec<(String, fluidcast_render::AdaptivePlan)> {
 /// drawn as super-pixels, and the mean level of the sampled ones (what the AOVs show).
 #[test]
 fn bundle_summaries_count_their_cells() {
-    let sp = fluidcast_render::SamplingPlan::SUPERPIXEL;
     let mut mixed = 0;
     for (what, a) in ramp_plans() {
         for (b, s) in a.plan.summaries.iter().enumerate() {
-            let first = a.grid.bundle_first_cell(b);
-            let levels = &a.plan.cell_levels[first..first + a.grid.bundle_cells(b).len()];
-            let n = levels.len().max(1) as f32;
-            let count = |f: &dyn Fn(u8) -> bool| levels.iter().filter(|&&l| f(l)).count();
-            let (full, sps) = (count(&|l| l == 0), count(&|l| l == sp));
-            let adapted = levels.len() - full - sps;
-            let lsum: u32 = levels.iter().filter(|&&l| l != sp).map(|&l| l as u32).sum();
-            let mean = lsum as f32 / (full + adapted).max(1) as f32;
-            let want = [full as f32 / n, adapted as f32 / n, sps as f32 / n, mean];
+            let want = counted_summary(bundle_levels(&a.grid, &a.plan, b));
             let got = [s.full, s.adapted, s.superpixel, s.mean_level];
             for (g, w) in got.iter().zip(want) {
                 assert!(
@@ -568,13 +559,36 @@ fn bundle_summaries_count_their_cells() {
                     "{what}, bundle {b}: {got:?} vs {want:?}"
                 );
             }
-            mixed += usize::from(full > 0 && adapted > 0);
+            mixed += usize::from(want[0] > 0.0 && want[1] > 0.0);
         }
     }
     assert!(
         mixed > 20,
         "only {mixed} bundles mix full-rate and adapted cells"
     );
+}
+
+/// The levels the plan chose for bundle `b`'s cells.
+fn bundle_levels<'a>(
+    grid: &fluidcast_grid::PerspectiveGrid,
+    plan: &'a fluidcast_render::SamplingPlan,
+    b: usize,
+) -> &'a [u8] {
+    let first = grid.bundle_first_cell(b);
+    &plan.cell_levels[first..first + grid.bundle_cells(b).len()]
+}
+
+/// A bundle's summary counted from its cells' levels: the shares at full rate, adapted and
+/// super-pixels, and the mean level of the sampled cells.
+fn counted_summary(levels: &[u8]) -> [f32; 4] {
+    let sp = fluidcast_render::SamplingPlan::SUPERPIXEL;
+    let n = levels.len().max(1) as f32;
+    let count = |f: &dyn Fn(u8) -> bool| levels.iter().filter(|&&l| f(l)).count();
+    let (full, sps) = (count(&|l| l == 0), count(&|l| l == sp));
+    let adapted = levels.len() - full - sps;
+    let lsum: u32 = levels.iter().filter(|&&l| l != sp).map(|&l| l as u32).sum();
+    let mean = lsum as f32 / (full + adapted).max(1) as f32;
+    [full as f32 / n, adapted as f32 / n, sps as f32 / n, mean]
 }
 
 /// Checks [`merged_spans_are_aligned_runs_of_one_level_and_maximal`]'s rules on every
@@ -665,15 +679,7 @@ fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
         );
         let mut seen = [0usize; 3];
         for b in 0..s.grid.bundle_count() {
-            let first = s.grid.bundle_first_cell(b);
-            let levels = &s.plan.cell_levels[first..first + s.grid.bundle_cells(b).len()];
-            let sampled: Vec<f32> = levels
-                .iter()
-                .filter(|&&l| l != fluidcast_render::SamplingPlan::SUPERPIXEL)
-                .map(|&l| l as f32)
-                .collect();
-            let mean = sampled.iter().sum::<f32>() / sampled.len().max(1) as f32;
-            let share = (levels.len() - sampled.len()) as f32 / levels.len().max(1) as f32;
+            let [_, _, share, mean] = counted_summary(bundle_levels(&s.grid, &s.plan, b));
             let [x0, x1, y0, y1] = s.grid.bundle(b).pixels;
             for j in y0..y1 {
                 for i in x0..x1 {
