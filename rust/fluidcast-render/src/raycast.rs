@@ -268,4 +268,17 @@ mod tests {
         assert!(beyond.done);
         assert_eq!((comp.color, comp.trans), (before, t));
     }
+
+    /// Both thresholds are strict: transmittance exactly ½ is not yet "opacity above ½" (no
+    /// depth), and transmittance exactly at the minimum does not stop the ray.
+    #[test]
+    fn thresholds_are_crossed_only_below_them() {
+        let mut comp = Compositor::new(10.0);
+        comp.add([0.5, 0.0, 0.0, 0.5], (1.0, 2.0), 0.5);
+        assert_eq!(comp.trans, 0.5);
+        assert!(comp.depth.is_infinite() && !comp.done, "{comp:?}");
+        comp.add([0.0, 0.5, 0.0, 0.5], (2.0, 3.0), 0.5);
+        assert_eq!(comp.depth, 2.0);
+        assert!(comp.done, "{comp:?}");
+    }
 }
