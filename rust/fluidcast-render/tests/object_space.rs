@@ -1,7 +1,8 @@
 //! The object-space baseline (per-sample gathering from a world-space neighbour grid) takes
 //! the reference renderer's samples by another route, so both images must agree: the same
 //! oracle as the reference's brute-force test, on three kernels and fields, perspective and
-//! parallel, plus an opaque surface that ends the rays.
+//! parallel, plus an opaque surface that ends the rays, and the scene moved into the positive
+//! octant, where simulation domains usually lie (no coordinate near or below 0).
 
 mod common;
 use common::{cloud, cloud_view};
@@ -10,14 +11,20 @@ use fluidcast_sph::{FieldKind, Kernel};
 
 #[test]
 fn object_space_equals_reference() {
-    let p = cloud(80, 11);
-    for (parallel, field, kernel, limit) in [
-        (false, FieldKind::Csph, Kernel::CubicSpline, None),
-        (true, FieldKind::Sph, Kernel::WendlandC2, None),
-        (false, FieldKind::Density, Kernel::Quintic, None),
-        (false, FieldKind::Csph, Kernel::WendlandC4, Some(0.5)),
+    for (parallel, field, kernel, limit, shift) in [
+        (false, FieldKind::Csph, Kernel::CubicSpline, None, [0.0; 3]),
+        (true, FieldKind::Sph, Kernel::WendlandC2, None, [0.0; 3]),
+        (false, FieldKind::Density, Kernel::Quintic, None, [0.0; 3]),
+        (false, FieldKind::Csph, Kernel::WendlandC4, Some(0.5), [0.0; 3]),
+        (false, FieldKind::Csph, Kernel::CubicSpline, None, [1.5, 2.0, 0.8]),
     ] {
-        let (cam, tf) = cloud_view(35.0, 20.0, parallel, field);
+        let mut p = cloud(80, 11);
+        for x in &mut p.positions {
+            *x = [0, 1, 2].map(|k| x[k] + shift[k] as f32);
+        }
+        let (mut cam, tf) = cloud_view(35.0, 20.0, parallel, field);
+        cam.position = [0, 1, 2].map(|k| cam.position[k] + shift[k]);
+        cam.focal_point = [0, 1, 2].map(|k| cam.focal_point[k] + shift[k]);
         let (w, h) = (32, 24);
         let mut prm = RenderParams {
             width: w,
