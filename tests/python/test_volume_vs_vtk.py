@@ -19,9 +19,16 @@ from, and why the tolerance is what it is:
 
 So the RMSE must shrink about linearly with the spacing: halving the spacing must cut it
 by at least 30 % (measured: 45 %), and at a spacing of H/4 it stays below 0.015 in 0..1
-(measured 0.0098 on the double dam break at 400x300 — 1.5x headroom). A camera off by a
+(measured 0.0102 on both cases at 320x240 — 1.5x headroom). A camera off by a
 pixel, a wrong radius or kernel, or the wrong array would break the convergence: the
 error would stall at the size of that mistake.
+
+Per pixel: the shell's pixels cannot be named in advance (they lie on silhouettes and on
+surfaces seen face-on), so the outliers are bounded by count and must converge too. The
+share of pixels off by more than 0.1 at H/4 is at most 0.8 % (measured 0.32 % and 0.43 %)
+and at most 0.6x its share at H/2 (measured 0.27x and 0.34x); no pixel is off by more than
+0.5 (measured 0.41 and 0.40: one voxel of shell over an opaque surface), so a single pixel
+drawn wrong (NaN, an uncleared tile, a wrong depth cut) fails the test.
 """
 import json
 
@@ -70,6 +77,7 @@ def test_reference_image_converges_to_vtk_volume_rendering(case, tmp_path):
         assert (ours[mode] != 255).any(axis=2).mean() > 0.05, f"{mode}: drew almost nothing"
 
     rmse = {mode: {} for mode in ours}
+    outliers = {mode: {} for mode in ours}
     extent = max(hi - lo for lo, hi in np.array(ds.GetBounds()).reshape(3, 2)) + 2 * support
     for spacing_in_h in (0.5, 0.25):
         resolution = int(np.ceil(extent / (spacing_in_h * support))) + 1
@@ -77,7 +85,15 @@ def test_reference_image_converges_to_vtk_volume_rendering(case, tmp_path):
                             null_value=lo - 0.01 * (hi - lo), mass=mass, density=density)
         img, _ = render_volume(vol, cam, ctf, otf, c["unit"], SIZE)
         for mode, im in ours.items():
-            rmse[mode][spacing_in_h] = difference(img, im)["rmse"]
+            d = difference(img, im)
+            rmse[mode][spacing_in_h] = d["rmse"]
+            off = np.abs(img.astype(float) - im.astype(float)).max(axis=2) / 255.0
+            outliers[mode][spacing_in_h] = float((off > 0.1).mean())
+            if spacing_in_h == 0.25:
+                assert d["max_abs"] <= 0.5, f"{mode}: a pixel off by {d['max_abs']:.3f}"
     for mode, r in rmse.items():
         assert r[0.25] <= 0.7 * r[0.5], f"{mode}: no convergence: RMSE {r}"
         assert r[0.25] <= 0.015, f"{mode}: RMSE {r}"
+        o = outliers[mode]
+        assert o[0.25] <= 0.008, f"{mode}: share of pixels off by > 0.1: {o}"
+        assert o[0.25] <= 0.6 * o[0.5], f"{mode}: outliers do not converge: {o}"
