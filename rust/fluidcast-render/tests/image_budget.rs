@@ -15,7 +15,10 @@ fn the_image_must_fit_the_memory_budget() {
     };
     let needed = u64::from(w * h) * IMAGE_BYTES_PER_PIXEL;
     std::env::set_var("FLUIDCAST_MEMORY_LIMIT", (needed - 1).to_string());
-    let e = validate(&prm).err().map(|e| e.to_string()).unwrap_or_default();
+    let e = validate(&prm)
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
     // 3,840,000 bytes.
     assert!(e.contains("a 300x200 render needs 3.7 MiB"), "got '{e}'");
     std::env::set_var("FLUIDCAST_MEMORY_LIMIT", needed.to_string());

@@ -15,8 +15,20 @@ fn object_space_equals_reference() {
         (false, FieldKind::Csph, Kernel::CubicSpline, None, [0.0; 3]),
         (true, FieldKind::Sph, Kernel::WendlandC2, None, [0.0; 3]),
         (false, FieldKind::Density, Kernel::Quintic, None, [0.0; 3]),
-        (false, FieldKind::Csph, Kernel::WendlandC4, Some(0.5), [0.0; 3]),
-        (false, FieldKind::Csph, Kernel::CubicSpline, None, [1.5, 2.0, 0.8]),
+        (
+            false,
+            FieldKind::Csph,
+            Kernel::WendlandC4,
+            Some(0.5),
+            [0.0; 3],
+        ),
+        (
+            false,
+            FieldKind::Csph,
+            Kernel::CubicSpline,
+            None,
+            [1.5, 2.0, 0.8],
+        ),
     ] {
         let mut p = cloud(80, 11);
         for x in &mut p.positions {
