@@ -18,7 +18,7 @@ use crate::view::{parse_tolerance, SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
-    /// A .vtu, .vtp, legacy .vtk file, or a .pvd series.
+    /// A .vtu, .vtp, .pvtu, .pvtp, legacy .vtk file, or a .pvd series.
     input: PathBuf,
     #[command(flatten)]
     particles: ParticleArgs,

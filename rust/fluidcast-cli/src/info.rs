@@ -23,7 +23,7 @@ fn adapters() -> Result<()> {
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// A .vtu, .vtp, .vtk file or a .pvd series (its first frame is described).
+    /// A .vtu, .vtp, .pvtu, .pvtp, .vtk file or a .pvd series (its first frame is described).
     #[arg(required_unless_present = "adapters")]
     input: Option<PathBuf>,
     /// List the GPU adapters fluidcast finds, best first, and what --backend auto picks.

@@ -16,7 +16,7 @@ use fluidcast_backend::{Backend, Renderer};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// A .vtu, .vtp, legacy .vtk file, or a .pvd series.
+    /// A .vtu, .vtp, .pvtu, .pvtp, legacy .vtk file, or a .pvd series.
     input: PathBuf,
     /// Output image: .png (8-bit over --background, colour values written as VTK and ParaView
     /// write them; see --srgb) or .exr (float RGBA premultiplied + Z).

@@ -33,7 +33,7 @@ impl ReadError {
 pub enum ReadErrorKind {
     #[error("cannot read file: {0}")]
     Io(#[from] std::io::Error),
-    #[error("unsupported file extension '{0}' (expected .vtu, .vtp, .vtk or .pvd)")]
+    #[error("unsupported file extension '{0}' (expected .vtu, .vtp, .pvtu, .pvtp, .vtk or .pvd)")]
     UnsupportedExtension(String),
     #[error("malformed XML: {0}")]
     Xml(String),

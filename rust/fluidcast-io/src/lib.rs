@@ -9,6 +9,8 @@
 //!   raw data, zlib arrays with a full last block, multi-block lzma arrays and compressed
 //!   `.vtp` files (see `tests/vtkio_faults.rs`).
 //! * `.pvd` collections ([`read_collection`]), each data set with its `timestep`.
+//! * Parallel `.pvtu` / `.pvtp` files ([`parse_parallel`]): their pieces read in parallel and
+//!   concatenated, ghost points dropped (module `parallel`).
 //! * Legacy `.vtk` 2.0 to 5.1 (ascii and big-endian binary) by our own parser (module `legacy`),
 //!   whose errors name the line.
 //!
@@ -28,6 +30,7 @@
 
 mod error;
 mod legacy;
+mod parallel;
 mod payload;
 mod pvd;
 pub mod xml;
@@ -35,6 +38,7 @@ pub mod xml;
 use std::path::{Path, PathBuf};
 
 pub use error::{ReadError, ReadErrorKind};
+pub use parallel::{parse_parallel, ParallelFile};
 pub use pvd::{parse_collection, read_collection, Collection, CollectionEntry};
 
 /// The numeric type an array had in the file. Values are always held as `f64`, which
@@ -275,7 +279,8 @@ impl Dataset {
     }
 }
 
-/// Reads one particle file, choosing the format by extension (`.vtu`, `.vtp`, `.vtk`).
+/// Reads one particle file, choosing the format by extension (`.vtu`, `.vtp`, `.vtk`, and
+/// `.pvtu`/`.pvtp`, whose pieces it reads too).
 ///
 /// Point-data arrays whose tuple count differs from the point count are an error, as are
 /// files with structural problems; every error names the file.
@@ -299,6 +304,8 @@ enum Format {
     Xml,
     /// `.vtk`
     Legacy,
+    /// `.pvtu`, `.pvtp`: a summary listing piece files.
+    Parallel,
 }
 
 impl Format {
@@ -307,6 +314,7 @@ impl Format {
         match ext.as_str() {
             "vtu" | "vtp" => Ok(Format::Xml),
             "vtk" => Ok(Format::Legacy),
+            "pvtu" | "pvtp" => Ok(Format::Parallel),
             "pvd" => Err(ReadError::new(
                 path,
                 ReadErrorKind::Format(
@@ -327,9 +335,25 @@ fn parse_as(format: Format, bytes: &[u8], path: &Path) -> Result<Dataset, ReadEr
     let ds = match format {
         Format::Xml => xml::parse(bytes, path),
         Format::Legacy => legacy::parse(bytes, path),
+        Format::Parallel => parallel::parse(bytes, path),
     }?;
     validate(&ds)?;
     Ok(ds)
+}
+
+/// Reads one piece of a parallel file: a `.vtu`, `.vtp` or `.vtk`, never another parallel
+/// file (which could list itself).
+fn read_piece(path: &Path) -> Result<Dataset, ReadError> {
+    match Format::of(path)? {
+        Format::Parallel => Err(ReadError::new(
+            path,
+            ReadErrorKind::Format(
+                "a piece of a parallel file must be a .vtu or .vtp, not another parallel file"
+                    .into(),
+            ),
+        )),
+        format => parse_as(format, &read_file(path)?, path),
+    }
 }
 
 fn extension(path: &Path) -> String {
