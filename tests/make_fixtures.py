@@ -204,6 +204,15 @@ def write_all(out, committed):
                 '<DataSet timestep="0" group="" part="0" file="lattice_ascii_none_h64.vtu"/>\n'
                 '</Collection>\n</VTKFile>\n')
     written.append("series.pvd")
+    # A parallel summary over two of them (as an MPI run writes one piece per rank).
+    with open(os.path.join(out, "pieces.pvtu"), "w") as f:
+        f.write('<?xml version="1.0"?>\n<VTKFile type="PUnstructuredGrid" version="0.1" '
+                'byte_order="LittleEndian">\n<PUnstructuredGrid GhostLevel="0">\n'
+                '<PPointData/>\n<PPoints><PDataArray type="Float32" NumberOfComponents="3"/>'
+                '</PPoints>\n<Piece Source="lattice_ascii_none_h64.vtu"/>\n'
+                '<Piece Source="lattice_binary_zlib_h64.vtu"/>\n'
+                '</PUnstructuredGrid>\n</VTKFile>\n')
+    written.append("pieces.pvtu")
     return written
 
 

@@ -177,6 +177,8 @@ pub fn parses_as(path: &Path) -> Option<&'static str> {
         "vtp" => Some("vtp"),
         "vtk" => Some("vtk"),
         "pvd" => Some("pvd"),
+        "pvtu" => Some("pvtu"),
+        "pvtp" => Some("pvtp"),
         "png" => Some("png"),
         "exr" => Some("exr"),
         _ => None,
@@ -204,6 +206,11 @@ fn run_unguarded(bytes: &[u8], ext: &str, render: bool) -> Outcome {
             Err(e) => refused(&e),
         },
         "pvd" => match fluidcast_io::parse_collection(bytes, &path) {
+            Ok(_) => Outcome::Accepted,
+            Err(e) => refused(&e),
+        },
+        // The summary only: its pieces are files on disk, which a fuzzer must not pick.
+        "pvtu" | "pvtp" => match fluidcast_io::parse_parallel(bytes, &path) {
             Ok(_) => Outcome::Accepted,
             Err(e) => refused(&e),
         },

@@ -1,5 +1,5 @@
 //! The fuzzer's smoke run, part of every test run: 20,000 mutated inputs from every seed
-//! (the VTK fixtures in all encodings, legacy files, a .pvd, PNG and EXR), one in 20 that
+//! (the VTK fixtures in all encodings, legacy files, a .pvd, a .pvtu summary, PNG and EXR), one in 20 that
 //! parses also rendered, through the `fluidcast-fuzz` runner under a 4 GiB address-space
 //! limit. A panic, an abort (an allocation a header merely claims), or an input running
 //! longer than 10 s fails it. Long runs: `scripts/fuzz.sh`.
