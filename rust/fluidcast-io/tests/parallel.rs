@@ -291,3 +291,37 @@ fn a_summary_listing_more_than_memory_holds_is_refused() {
     let e = refused(dir.path(), "many.pvtu", &summary(false, &[], &sources));
     assert!(e.contains("reading the 2000 pieces"), "{e}");
 }
+
+/// A `.pvd` series whose frames are parallel files (what a parallel run writes over time):
+/// each frame reads its own pieces.
+#[test]
+fn a_series_of_parallel_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let part = |r| Part {
+        range: r,
+        ghost: None,
+    };
+    for (t, r) in [(0, 0..30), (1, 30..64)] {
+        write(d, &format!("f{t}.vtu"), &xml(&[part(r)], false, false));
+        write(
+            d,
+            &format!("f{t}.pvtu"),
+            &summary(false, &["p"], &[&format!("f{t}.vtu")]),
+        );
+    }
+    let pvd = write(
+        d,
+        "run.pvd",
+        r#"<VTKFile type="Collection"><Collection>
+<DataSet timestep="0.1" file="f0.pvtu"/><DataSet timestep="0.2" file="f1.pvtu"/>
+</Collection></VTKFile>"#,
+    );
+    let input = fluidcast_io::Input::open(&pvd).unwrap();
+    let counts: Vec<usize> = input
+        .frames()
+        .iter()
+        .map(|(_, f)| input.read(f).unwrap().points.len())
+        .collect();
+    assert_eq!(counts, [30, 34]);
+}
