@@ -472,4 +472,41 @@ mod tests {
             assert!(cols.len() <= 3 && rows.len() <= 3, "{cols:?} {rows:?}");
         }
     }
+
+    /// Surface flags (52 ms for 227k particles) are computed only for plans that use them:
+    /// relaxed, adaptive, with the surface rule on (not strict, off or without the rule).
+    /// Given flags are passed through as they are.
+    #[test]
+    fn surface_flags_only_where_the_plan_uses_them() {
+        let mut p = Particles::default();
+        for i in 0..27 {
+            p.positions
+                .push([(i % 3) as f32, (i / 3 % 3) as f32, (i / 9) as f32]);
+        }
+        p.radii = vec![1.5; 27];
+        p.volumes = vec![1.0; 27];
+        p.values = vec![1.0; 27];
+        p.masses = vec![1.0; 27];
+        let relaxed = PlanParams {
+            tolerance: Some(0.004),
+            ..Default::default()
+        };
+        assert!(relaxed.uses_surface_cells());
+        let flags = plan_surface(&p, None, &relaxed).expect("relaxed plans use the surface");
+        assert_eq!(&*flags, &p.surface_flags(SURFACE_THRESHOLD)[..]);
+        let off = PlanParams {
+            tolerance: None,
+            ..relaxed
+        };
+        let no_rule = PlanParams {
+            surface_cells: false,
+            ..relaxed
+        };
+        for other in [relaxed.strict(), off, no_rule] {
+            assert!(plan_surface(&p, None, &other).is_none(), "{other:?}");
+        }
+        let given = vec![true; 27];
+        let passed = plan_surface(&p, Some(&given), &PlanParams::default());
+        assert!(matches!(passed, Some(Cow::Borrowed(s)) if s.as_ptr() == given.as_ptr()));
+    }
 }
