@@ -15,6 +15,8 @@
 # mutants in plan + render). JOBS=N runs N at a time (each in its own copy of the tree);
 # SHARD=k/n runs every n-th mutant from the k-th (round robin), to spread a crate over runs.
 # ITERATE=1 retests only the mutants the last run of the same crate (and shard) left alive.
+# cargo-mutants shards after it drops the caught ones, so ITERATE=1 with SHARD=k/n tests the
+# k-th n-th of what is left, not of the first run's shard k; every other run's results stand.
 # A mutant whose tests run past TIMEOUT seconds (default 150, four times the whole suite) is
 # stopped and listed as timed out: the suite did not pass it, but it is counted apart.
 set -euo pipefail
