@@ -225,8 +225,10 @@ fn merge(path: &Path, summary: &ParallelFile, pieces: Vec<Dataset>) -> Result<Da
         .iter()
         .filter_map(|(n, _)| pieces.first()?.point_array(n))
         .map(|a| DataArray {
+            name: a.name.clone(),
+            scalar_type: a.scalar_type,
+            num_components: a.num_components,
             values: Vec::new(),
-            ..a.clone()
         })
         .collect();
     for ds in &pieces {
