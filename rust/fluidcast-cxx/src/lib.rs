@@ -148,13 +148,15 @@ mod ffi {
         /// Builds the particles now (normally done by `render`) and reports them.
         fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
         /// Renders a `width x height` image, rows top first. `depth_limit` is empty or one
-        /// view depth per pixel (+inf = nothing opaque). Writes premultiplied RGBA
+        /// view depth per pixel (+inf = nothing opaque); `depth_near` is empty or one view
+        /// depth per pixel where the ray starts (a cropping region's entry; 0 = the camera). Writes premultiplied RGBA
         /// (`4 * width * height`) and the view depth where opacity passed 1/2 (+inf never).
         fn render(
             self: &mut Renderer,
             width: u32,
             height: u32,
             depth_limit: &[f32],
+            depth_near: &[f32],
             rgba: &mut [f32],
             depth: &mut [f32],
         ) -> Result<RenderInfo>;
@@ -535,6 +537,7 @@ impl Renderer {
         width: u32,
         height: u32,
         depth_limit: &[f32],
+        depth_near: &[f32],
         rgba: &mut [f32],
         depth: &mut [f32],
     ) -> Result<ffi::RenderInfo, String> {
@@ -566,6 +569,7 @@ impl Renderer {
                     ..Default::default()
                 },
                 depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
+                depth_near: (!depth_near.is_empty()).then(|| Arc::from(depth_near)),
                 ..Default::default()
             };
             let name = self.name();
@@ -704,7 +708,7 @@ mod tests {
         let (w, h) = (40u32, 30u32);
         let mut rgba = vec![0f32; 4 * 40 * 30];
         let mut depth = vec![0f32; 40 * 30];
-        let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+        let info = r.render(w, h, &[], &[], &mut rgba, &mut depth).unwrap();
         assert_eq!(info.particles, 216);
         assert!(info.samples > 0);
         assert!(rgba.chunks(4).any(|p| p[3] > 0.5));
@@ -769,13 +773,13 @@ mod tests {
         let (w, h) = (40u32, 30u32);
         let mut cpu = vec![0f32; 4 * 40 * 30];
         let mut depth = vec![0f32; 40 * 30];
-        let info = r.render(w, h, &[], &mut cpu, &mut depth).unwrap();
+        let info = r.render(w, h, &[], &[], &mut cpu, &mut depth).unwrap();
         assert!(info.device.starts_with("CPU"), "{}", info.device);
         let mut s = settings();
         s.backend = 2;
         r.configure(&s).unwrap();
         let mut gpu = vec![0f32; 4 * 40 * 30];
-        let info = match r.render(w, h, &[], &mut gpu, &mut depth) {
+        let info = match r.render(w, h, &[], &[], &mut gpu, &mut depth) {
             Ok(i) => i,
             Err(e) if std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1") => {
                 return eprintln!("SKIPPED: {e}");
@@ -794,7 +798,7 @@ mod tests {
             b.renderer.gpu().unwrap() as *const fluidcast_backend::Gpu
         };
         let first = held(&r);
-        r.render(w, h, &[], &mut gpu, &mut depth).unwrap();
+        r.render(w, h, &[], &[], &mut gpu, &mut depth).unwrap();
         assert_eq!(first, held(&r), "the GPU was reopened for the second frame");
         s.backend = 7;
         let e = r.configure(&s).unwrap_err();
@@ -814,7 +818,7 @@ mod tests {
         r.configure(&s).unwrap();
         let mut rgba = vec![0f32; 4];
         let mut depth = vec![0f32; 1];
-        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
+        let e = r.render(1, 1, &[], &[], &mut rgba, &mut depth).unwrap_err();
         assert!(e.contains("test cube") && e.contains("nope"), "{e}");
 
         let mut r = new_renderer();
@@ -825,7 +829,7 @@ mod tests {
         s.support_radius = 0.0;
         s.radius_array = "h".into();
         r.configure(&s).unwrap();
-        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
+        let e = r.render(1, 1, &[], &[], &mut rgba, &mut depth).unwrap_err();
         assert!(e.contains("support radius") && e.contains("NaN"), "{e}");
 
         let mut r = new_renderer();
@@ -842,9 +846,13 @@ mod tests {
         s.kernel = "bogus".into();
         assert!(r.configure(&s).unwrap_err().contains("bogus"));
         assert!(r
-            .render(2, 2, &[1.0], &mut [0.0; 16], &mut [0.0; 4])
+            .render(2, 2, &[1.0], &[], &mut [0.0; 16], &mut [0.0; 4])
             .unwrap_err()
             .contains("depth limit"));
+        assert!(r
+            .render(2, 2, &[], &[1.0, 1.0, 1.0], &mut [0.0; 16], &mut [0.0; 4])
+            .unwrap_err()
+            .contains("depth near"));
     }
 
     #[test]

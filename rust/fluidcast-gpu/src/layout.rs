@@ -230,7 +230,7 @@ pub(crate) fn frame_uniform(
         tf_lo: tf.range.0 as f32,
         tf_hi: tf.range.1 as f32,
         unit_distance: tf.unit_distance as f32,
-        has_limit: params.depth_limit.is_some() as u32,
+        has_limit: params.depth_limit.is_some() as u32 | (params.depth_near.is_some() as u32) << 1,
         n_particles: n as u32,
         near: 0.0,
         far: 0.0,

@@ -161,9 +161,20 @@ impl Gpu {
         let n_px = w as u64 * h as u64;
         let groups = (w.div_ceil(d), h.div_ceil(d));
         let bundles = groups.0 as u64 * groups.1 as u64;
+        // The far depths of all pixels, then the near ones, when either is given.
         // f32::INFINITY is fine in WGSL storage (the shader only compares against it).
-        let limits: &[f32] = params.depth_limit.as_deref().unwrap_or(&[]);
-        let limit = self.upload("depth limit", limits);
+        let limits: Vec<f32> = match (&params.depth_limit, &params.depth_near) {
+            (None, None) => Vec::new(),
+            (far, near) => {
+                let n = n_px as usize;
+                let far = far
+                    .as_deref()
+                    .map_or(vec![f32::INFINITY; n], <[f32]>::to_vec);
+                let near = near.as_deref().map_or(vec![0.0; n], <[f32]>::to_vec);
+                [far, near].concat()
+            }
+        };
+        let limit = self.upload("depth limit", &limits);
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);

@@ -269,3 +269,44 @@ fn gpu_matches_cpu_with_opaque_geometry() {
         );
     }
 }
+
+/// Rays cropped to a depth interval (`depth_near` alone, and with `depth_limit`: what an MPI
+/// rank's box gives) composite the same part of the ray on the GPU as on the CPU.
+#[test]
+fn gpu_matches_cpu_cropped_to_a_depth_interval() {
+    let Some(g) = gpu() else { return };
+    let p = cloud(4000, 5);
+    let tf = cloud_tf();
+    let cam = Camera {
+        position: [0.3, 0.4, 2.2],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let (w, h) = (96u32, 72u32);
+    let plane = |z0: f32, dz: f32| -> std::sync::Arc<[f32]> {
+        (0..h)
+            .flat_map(|j| (0..w).map(move |i| z0 + dz * (i + j) as f32 / (w + h) as f32))
+            .collect()
+    };
+    let (near, far) = (plane(1.9, 0.3), plane(2.3, 0.2));
+    for (crop, limit) in [(&near, None), (&near, Some(&far))] {
+        for (name, adaptive) in modes() {
+            let prm = RenderParams {
+                width: w,
+                height: h,
+                adaptive,
+                depth_near: Some(crop.clone()),
+                depth_limit: limit.cloned(),
+                ..Default::default()
+            };
+            let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
+            let what = if limit.is_some() { "near and far" } else { "near" };
+            eprintln!("{what} {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
+            assert!(
+                max <= 0.05 && frac <= 1e-3,
+                "{what} {name}: max {max}, {frac} above 1e-3"
+            );
+        }
+    }
+}

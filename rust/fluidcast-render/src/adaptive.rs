@@ -247,7 +247,7 @@ fn cast_bundle(
     let lines = BundleLines::new(&rays, width);
     let lanes = BundleRays::new(&rays, width);
     let mut comps: Vec<Compositor> = pixels
-        .map(|(i, j)| Compositor::new(params.depth_limit_at(i, j)))
+        .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
     let mut zs = [0.0f64; 65];
     for span in plan.bundle_spans(b) {

@@ -68,6 +68,12 @@ pub struct RenderParams {
     /// ray stops there, the last step cut at it, so a volume behind a surface is hidden and
     /// one in front covers it. `+∞` where there is none; `None` for no geometry at all.
     pub depth_limit: Option<Arc<[f32]>>,
+    /// Per pixel (as `depth_limit`), the view depth where the ray starts: what lies in front
+    /// of it is not composited and a step that straddles it keeps its back part, cut as a
+    /// homogeneous segment. With `depth_limit` this crops each ray to a region, e.g. the box a
+    /// rank owns under MPI: the images of regions that partition space, composited in
+    /// visibility order, equal the image of the whole. `None`: every ray starts at the camera.
+    pub depth_near: Option<Arc<[f32]>>,
 }
 
 impl RenderParams {
@@ -78,6 +84,16 @@ impl RenderParams {
             Some(d) => d[j as usize * self.width as usize + i as usize] as f64,
             None => f64::INFINITY,
         }
+    }
+
+    /// The view depths (near, far) between which pixel (i, j)'s ray is composited.
+    #[inline]
+    pub fn depth_range_at(&self, i: u32, j: u32) -> (f64, f64) {
+        let near = match &self.depth_near {
+            Some(d) => d[j as usize * self.width as usize + i as usize] as f64,
+            None => f64::NEG_INFINITY,
+        };
+        (near, self.depth_limit_at(i, j))
     }
 
     /// Per bundle of `grid.bundle × grid.bundle` pixels (row-major, the last row and column
@@ -111,6 +127,7 @@ impl Default for RenderParams {
             grid: GridParams::default(),
             adaptive: PlanParams::default(),
             depth_limit: None,
+            depth_near: None,
         }
     }
 }
@@ -128,10 +145,10 @@ pub enum RenderError {
     Plan(#[from] PlanError),
     #[error("minimum transmittance {0} must be in [0, 1)")]
     MinTransmittance(f64),
-    #[error("depth limit has {0} values for a {1}x{2} image")]
-    DepthLimitSize(usize, u32, u32),
-    #[error("depth limit holds NaN or a negative depth")]
-    DepthLimitValue,
+    #[error("{0} has {1} values for a {2}x{3} image")]
+    DepthLimitSize(&'static str, usize, u32, u32),
+    #[error("{0} holds NaN or a negative depth")]
+    DepthLimitValue(&'static str),
 }
 
 /// A rendered frame: the image and what it took. What every backend returns (the CPU renderers
@@ -198,12 +215,17 @@ pub fn validate(params: &RenderParams) -> Result<(), RenderError> {
         pixels.saturating_mul(IMAGE_BYTES_PER_PIXEL),
     )
     .map_err(GridError::from)?;
-    if let Some(d) = &params.depth_limit {
+    let limits = [
+        ("depth limit", &params.depth_limit),
+        ("depth near", &params.depth_near),
+    ];
+    for (what, d) in limits {
+        let Some(d) = d else { continue };
         if d.len() != w as usize * h as usize {
-            return Err(RenderError::DepthLimitSize(d.len(), w, h));
+            return Err(RenderError::DepthLimitSize(what, d.len(), w, h));
         }
         if d.iter().any(|z| z.is_nan() || *z < 0.0) {
-            return Err(RenderError::DepthLimitValue);
+            return Err(RenderError::DepthLimitValue(what));
         }
     }
     Ok(())

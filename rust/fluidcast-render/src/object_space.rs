@@ -110,7 +110,7 @@ impl Gather<'_> {
         let (o, d) = (o.to_array(), d.to_array());
         let dlen = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         let prm = self.params;
-        let mut comp = Compositor::new(prm.depth_limit_at(i, j));
+        let mut comp = Compositor::for_pixel(prm, i, j);
         let Some((z0, z1)) = slab(&self.bounds, o, d) else {
             return comp;
         };

@@ -5,6 +5,8 @@ use fluidcast_grid::{within, Ray, ViewParticle};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::TfLookup;
 
+use crate::RenderParams;
+
 /// Kernel sums of one ray at a set of sample depths.
 #[derive(Debug, Clone)]
 pub(crate) struct Sums {
@@ -112,8 +114,9 @@ impl Along {
 }
 
 /// Front-to-back compositing state of one ray: premultiplied colour, transmittance and the
-/// depth where opacity first exceeded ½. Nothing at or beyond `limit` (view depth of an
-/// opaque surface in front of the particles' far end) is composited.
+/// depth where opacity first exceeded ½. Only the part of the ray between view depths `near`
+/// (the start of a cropping region) and `limit` (an opaque surface, or the region's end) is
+/// composited; a step that straddles either is cut as a homogeneous segment.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Compositor {
     pub color: [f64; 3],
@@ -121,33 +124,51 @@ pub(crate) struct Compositor {
     pub depth: f32,
     pub samples: u64,
     pub done: bool,
+    pub near: f64,
     pub limit: f64,
 }
 
 impl Compositor {
     /// A fresh ray that ends at view depth `limit` (`f64::INFINITY`: no opaque surface).
+    #[cfg(test)]
     pub fn new(limit: f64) -> Compositor {
+        Compositor::between(f64::NEG_INFINITY, limit)
+    }
+
+    /// A fresh ray that composites only from view depth `near` to `limit`.
+    pub fn between(near: f64, limit: f64) -> Compositor {
         Compositor {
             color: [0.0; 3],
             trans: 1.0,
             depth: f32::INFINITY,
             samples: 0,
             done: false,
+            near,
             limit,
         }
     }
 
+    /// The ray of pixel (i, j) as `params` bound it ([`RenderParams::depth_range_at`]).
+    pub fn for_pixel(params: &RenderParams, i: u32, j: u32) -> Compositor {
+        let (near, limit) = params.depth_range_at(i, j);
+        Compositor::between(near, limit)
+    }
+
     /// Composites a sample of value `q` standing for the step from view depth `z0` to `z1`
     /// (`dlen` world units per unit of view depth along this ray); a step that reaches past
-    /// the limit is cut there.
+    /// the limit or starts before `near` is cut there.
     #[inline]
     pub fn sample(&mut self, tf: &TfLookup, q: f64, (z0, z1): (f64, f64), dlen: f64, min_t: f64) {
         if z0 >= self.limit {
             self.done = true;
             return;
         }
+        if z1 <= self.near {
+            return; // wholly in front of the ray's start: not a sample of this ray
+        }
         let (rgb, alpha) = tf.eval(q);
-        // The step is cut at the limit here, so `add` must see it ending there (not cut again).
+        // The step is cut at the limit here, so `add` must see it ending there (not cut again);
+        // `add` cuts its front at `near`, which for one homogeneous step is the same.
         let z1 = z1.min(self.limit);
         let a = tf.tf.step_alpha(alpha, (z1 - z0) * dlen);
         self.samples += 1;
@@ -158,17 +179,21 @@ impl Compositor {
         );
     }
 
-    /// Composites a premultiplied (I rgb, T) segment from view depth `z0` to `z1`. Past the
-    /// limit it is cut as a homogeneous segment would be: T^f and I (1 − T^f)/(1 − T) for
-    /// the fraction f in front of the limit.
+    /// Composites a premultiplied (I rgb, T) segment from view depth `z0` to `z1`. Outside
+    /// [near, limit] it is cut as a homogeneous segment would be: T^f and I (1 − T^f)/(1 − T)
+    /// for the fraction f kept.
     #[inline]
     pub fn add(&mut self, mut it: [f64; 4], (z0, z1): (f64, f64), min_t: f64) {
         if z0 >= self.limit {
             self.done = true;
             return;
         }
-        if z1 > self.limit {
-            let f = (self.limit - z0) / (z1 - z0);
+        if z1 <= self.near {
+            return;
+        }
+        let (a, b) = (z0.max(self.near), z1.min(self.limit));
+        if a > z0 || b < z1 {
+            let f = (b - a) / (z1 - z0);
             let t = it[3].powf(f);
             let s = if it[3] < 1.0 {
                 (1.0 - t) / (1.0 - it[3])
@@ -176,14 +201,14 @@ impl Compositor {
                 f
             };
             it = [it[0] * s, it[1] * s, it[2] * s, t];
-            self.done = true;
+            self.done = b < z1;
         }
         for (c, i) in self.color.iter_mut().zip(it) {
             *c += self.trans * i;
         }
         self.trans *= it[3];
         if self.trans < 0.5 && self.depth.is_infinite() {
-            self.depth = z0 as f32;
+            self.depth = a as f32;
         }
         if self.trans < min_t {
             self.done = true;

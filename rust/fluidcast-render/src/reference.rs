@@ -144,7 +144,7 @@ pub fn render_reference(
                         .iter()
                         .filter_map(|p| sums.scatter(&ray, p, zs, params.kernel))
                         .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
-                    let mut comp = Compositor::new(params.depth_limit_at(i, j));
+                    let mut comp = Compositor::for_pixel(params, i, j);
                     for k in lo..hi {
                         if let Some(q) = sums.value(k, params.field) {
                             let z = (depths.z[k], depths.z[k + 1]);

@@ -84,24 +84,32 @@ fn bad_grid_parameters_are_errors() {
 
 #[test]
 fn depth_limits_must_cover_the_image_with_non_negative_depths() {
-    let with = |d: Vec<f32>| RenderParams {
-        depth_limit: Some(Arc::from(d)),
-        ..size(3, 2)
-    };
-    assert!(validate(&with(vec![0.0, 1.0, 2.0, 3.0, f32::INFINITY, 0.5])).is_ok());
-    for n in [5, 7, 2] {
-        assert!(matches!(
-            validate(&with(vec![1.0; n])),
-            Err(RenderError::DepthLimitSize(m, 3, 2)) if m == n
-        ));
-    }
-    for bad in [f32::NAN, -0.5] {
-        let mut d = vec![1.0; 6];
-        d[5] = bad;
-        assert!(
-            matches!(validate(&with(d)), Err(RenderError::DepthLimitValue)),
-            "{bad}"
-        );
+    type Slot = fn(&mut RenderParams) -> &mut Option<Arc<[f32]>>;
+    let slots: [(&str, Slot); 2] = [
+        ("depth limit", |p| &mut p.depth_limit),
+        ("depth near", |p| &mut p.depth_near),
+    ];
+    for (name, slot) in slots {
+        let with = |d: Vec<f32>| {
+            let mut p = size(3, 2);
+            *slot(&mut p) = Some(Arc::from(d));
+            p
+        };
+        assert!(validate(&with(vec![0.0, 1.0, 2.0, 3.0, f32::INFINITY, 0.5])).is_ok());
+        for n in [5, 7, 2] {
+            assert!(matches!(
+                validate(&with(vec![1.0; n])),
+                Err(RenderError::DepthLimitSize(w, m, 3, 2)) if m == n && w == name
+            ));
+        }
+        for bad in [f32::NAN, -0.5] {
+            let mut d = vec![1.0; 6];
+            d[5] = bad;
+            assert!(
+                matches!(validate(&with(d)), Err(RenderError::DepthLimitValue(w)) if w == name),
+                "{name} {bad}"
+            );
+        }
     }
 }
 

@@ -27,7 +27,7 @@ struct Frame {
     tf_lo: f32,
     tf_hi: f32,
     unit_distance: f32,
-    has_limit: u32,      // 1: depth_limit holds a view depth per pixel (opaque geometry)
+    has_limit: u32,      // bit 0: a far depth per pixel (opaque geometry); bit 1: a near one
     n_particles: u32,
     near: f32,
     far: f32,

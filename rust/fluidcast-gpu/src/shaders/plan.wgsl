@@ -24,7 +24,7 @@
 // [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
 @group(0) @binding(17) var<storage, read_write> guard: array<atomic<u32>>;
 // Per bundle: the nearest view depth at which opaque geometry stops one of its rays (read
-// only when P.has_limit is 1; RenderParams::bundle_stops).
+// only when bit 0 of P.has_limit is set; RenderParams::bundle_stops).
 @group(0) @binding(18) var<storage, read> stops: array<f32>;
 
 /// A bundle's rays: extremes of the direction's (perspective) or origin's (parallel) x and y
@@ -267,7 +267,7 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
             }
             // A step that ends past the bundle's nearest stop may be cut short or skipped
             // for some ray: "nothing" is one of its values, as for a coverage gap.
-            let stopped = P.has_limit == 1u && depths[k0 + li + 1u] > stops[cell.bundle];
+            let stopped = (P.has_limit & 1u) == 1u && depths[k0 + li + 1u] > stops[cell.bundle];
             vb.may_be_empty = cover != full || stopped;
             if (cover != full) {
                 atomicOr(&cell_flags, 1u);

@@ -110,10 +110,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     var depth_half = 1.0e30;
     var done = !in_image;
     var samples = 0u;
-    // Rays stop at opaque geometry (RenderParams::depth_limit), as the CPU Compositor.
+    // Rays composite only from `near` (RenderParams::depth_near, a cropping region's start)
+    // to `limit` (RenderParams::depth_limit: opaque geometry or the region's end), as the CPU
+    // Compositor: depth_limit holds the far depths of all pixels, then the near ones.
     var limit = 3.0e38;
-    if (P.has_limit == 1u && in_image) {
+    var near = 0.0;
+    if (P.has_limit != 0u && in_image) {
         limit = depth_limit[j * P.width + i];
+        near = depth_limit[(P.height + j) * P.width + i];
     }
 
     // Per sample of the span: Σ V A W (or Σ m W for the density field) and Σ V W.
@@ -150,20 +154,22 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 var it = span.sp;
                 if (z0 >= limit) {
                     done = true;
-                } else {
-                    if (z1 > limit) {
+                } else if (z1 > near) {
+                    let za = max(z0, near);
+                    let zb = min(z1, limit);
+                    if (za > z0 || zb < z1) {
                         // Cut as a homogeneous segment: T^f, I (1 - T^f) / (1 - T).
-                        let f = (limit - z0) / (z1 - z0);
+                        let f = (zb - za) / (z1 - z0);
                         let t = pow(it.w, f);
                         var sc = f;
                         if (it.w < 1.0) { sc = (1.0 - t) / (1.0 - it.w); }
                         it = vec4<f32>(it.xyz * sc, t);
-                        done = true;
+                        done = zb < z1;
                     }
                     color = color + trans * it.xyz;
                     trans = trans * it.w;
                     if (trans < 0.5 && depth_half > 1.0e29) {
-                        depth_half = z0;
+                        depth_half = za;
                     }
                     if (trans < P.min_transmittance) {
                         done = true;
@@ -252,12 +258,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 var q = weighted[m] / shepard[m];
                 if (P.field == FIELD_SPH) { q = weighted[m]; }
                 if (is_density) { q = weighted[m]; }
-                let za = span_z[m];
-                let zb = min(span_z[m + 1u], limit);
-                if (za >= limit) {
+                if (span_z[m] >= limit) {
                     done = true;
                     break;
                 }
+                if (span_z[m + 1u] <= near) {
+                    continue;
+                }
+                let za = max(span_z[m], near);
+                let zb = min(span_z[m + 1u], limit);
                 let ca = tf_eval(q);
                 samples = samples + 1u;
                 var a = 1.0;
