@@ -148,15 +148,16 @@ mod ffi {
         /// Builds the particles now (normally done by `render`) and reports them.
         fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
         /// Renders a `width x height` image, rows top first. `depth_limit` is empty or one
-        /// view depth per pixel (+inf = nothing opaque); `depth_near` is empty or one view
-        /// depth per pixel where the ray starts (a cropping region's entry; 0 = the camera). Writes premultiplied RGBA
+        /// view depth per pixel (+inf = nothing opaque). `crop` is empty or a world-space box
+        /// (xmin, xmax, ymin, ymax, zmin, zmax, as vtkVolumeMapper's CroppingRegionPlanes):
+        /// only the part of each ray inside it is composited. Writes premultiplied RGBA
         /// (`4 * width * height`) and the view depth where opacity passed 1/2 (+inf never).
         fn render(
             self: &mut Renderer,
             width: u32,
             height: u32,
             depth_limit: &[f32],
-            depth_near: &[f32],
+            crop: &[f64],
             rgba: &mut [f32],
             depth: &mut [f32],
         ) -> Result<RenderInfo>;
@@ -537,7 +538,7 @@ impl Renderer {
         width: u32,
         height: u32,
         depth_limit: &[f32],
-        depth_near: &[f32],
+        crop: &[f64],
         rgba: &mut [f32],
         depth: &mut [f32],
     ) -> Result<ffi::RenderInfo, String> {
@@ -559,7 +560,7 @@ impl Renderer {
                 .settings
                 .clone()
                 .ok_or("fluidcast: configure() was not called")?;
-            let params = RenderParams {
+            let mut params = RenderParams {
                 width,
                 height,
                 kernel: s.kernel.parse().map_err(|e: String| e)?,
@@ -569,10 +570,15 @@ impl Renderer {
                     ..Default::default()
                 },
                 depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
-                depth_near: (!depth_near.is_empty()).then(|| Arc::from(depth_near)),
                 ..Default::default()
             };
             let name = self.name();
+            if !crop.is_empty() {
+                let [x0, x1, y0, y1, z0, z1] = <[f64; 6]>::try_from(crop)
+                    .map_err(|_| format!("crop box has {} values, not 6", crop.len()))?;
+                fluidcast_render::crop_to_box(&mut params, &camera, [x0, y0, z0], [x1, y1, z1])
+                    .map_err(|e| format!("{name}: {e}"))?;
+            }
             let t = Instant::now();
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             self.prepared()?;
@@ -852,7 +858,18 @@ mod tests {
         assert!(r
             .render(2, 2, &[], &[1.0, 1.0, 1.0], &mut [0.0; 16], &mut [0.0; 4])
             .unwrap_err()
-            .contains("depth near"));
+            .contains("crop box has 3 values"));
+        assert!(r
+            .render(
+                2,
+                2,
+                &[],
+                &[0.0, 1.0, 0.0, f64::NAN, 0.0, 1.0],
+                &mut [0.0; 16],
+                &mut [0.0; 4]
+            )
+            .unwrap_err()
+            .contains("crop box"));
     }
 
     #[test]

@@ -301,7 +301,11 @@ fn gpu_matches_cpu_cropped_to_a_depth_interval() {
                 ..Default::default()
             };
             let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
-            let what = if limit.is_some() { "near and far" } else { "near" };
+            let what = if limit.is_some() {
+                "near and far"
+            } else {
+                "near"
+            };
             eprintln!("{what} {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
             assert!(
                 max <= 0.05 && frac <= 1e-3,

@@ -18,6 +18,7 @@
 //!   tolerance it samples exactly the reference's positions.
 
 mod adaptive;
+mod crop;
 mod object_space;
 mod raycast;
 mod reference;
@@ -30,6 +31,7 @@ pub use adaptive::{
     bundle_aovs, plan_adaptive, plan_aovs, plan_surface, render_adaptive, AdaptivePlan,
     AdaptiveRender, SURFACE_THRESHOLD,
 };
+pub use crop::crop_to_box;
 pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
@@ -147,6 +149,8 @@ pub enum RenderError {
     MinTransmittance(f64),
     #[error("{0} has {1} values for a {2}x{3} image")]
     DepthLimitSize(&'static str, usize, u32, u32),
+    #[error("crop box {0:?}..{1:?} is not a finite box (each min <= max)")]
+    CropBox([f64; 3], [f64; 3]),
     #[error("{0} holds NaN or a negative depth")]
     DepthLimitValue(&'static str),
 }

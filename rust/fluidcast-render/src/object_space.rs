@@ -111,7 +111,7 @@ impl Gather<'_> {
         let dlen = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         let prm = self.params;
         let mut comp = Compositor::for_pixel(prm, i, j);
-        let Some((z0, z1)) = slab(&self.bounds, o, d) else {
+        let Some((z0, z1)) = crate::crop::slab(&self.bounds, o, d) else {
             return comp;
         };
         let z = &self.depths.z;
@@ -129,70 +129,5 @@ impl Gather<'_> {
             }
         }
         comp
-    }
-}
-
-/// The depth interval (z ≥ 0) of the line `o + z·d` inside the box, if it meets it.
-fn slab(bounds: &[[f64; 2]; 3], o: [f64; 3], d: [f64; 3]) -> Option<(f64, f64)> {
-    let (mut z0, mut z1) = (0.0f64, f64::INFINITY);
-    for k in 0..3 {
-        if d[k] == 0.0 {
-            if o[k] < bounds[k][0] || o[k] > bounds[k][1] {
-                return None;
-            }
-            continue;
-        }
-        let (a, b) = ((bounds[k][0] - o[k]) / d[k], (bounds[k][1] - o[k]) / d[k]);
-        z0 = z0.max(a.min(b));
-        z1 = z1.min(a.max(b));
-    }
-    (z0 <= z1).then_some((z0, z1))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-
-    fn inside(b: &[[f64; 2]; 3], x: [f64; 3], tol: f64) -> bool {
-        (0..3).all(|k| x[k] >= b[k][0] - tol && x[k] <= b[k][1] + tol)
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(500))]
-        /// `slab` is the part of the ray in front of the eye (z >= 0) inside the box: its ends
-        /// lie on the box, points just beyond them outside, and when it finds none no point
-        /// of the ray is inside. Directions with zero components (parallel views) included.
-        #[test]
-        fn slab_is_the_rays_part_inside_the_box(
-            lo in prop::array::uniform3(-2.0f64..1.0),
-            size in prop::array::uniform3(0.1f64..2.0),
-            o in prop::array::uniform3(-3.0f64..3.0),
-            d in prop::array::uniform3(-1.0f64..1.0),
-            zero in prop::array::uniform3(any::<bool>()),
-        ) {
-            let b = [0, 1, 2].map(|k| [lo[k], lo[k] + size[k]]);
-            let d = [0, 1, 2].map(|k| if zero[k] { 0.0 } else { d[k] });
-            prop_assume!(d.iter().any(|&v| v.abs() > 0.05));
-            let at = |z: f64| [0, 1, 2].map(|k| o[k] + z * d[k]);
-            match slab(&b, o, d) {
-                Some((z0, z1)) => {
-                    prop_assert!(0.0 <= z0 && z0 <= z1);
-                    for f in [0.0, 0.5, 1.0] {
-                        prop_assert!(inside(&b, at(z0 + f * (z1 - z0)), 1e-9));
-                    }
-                    let step = 1e-3;
-                    if z0 > step {
-                        prop_assert!(!inside(&b, at(z0 - step), 0.0), "before {}", z0);
-                    }
-                    prop_assert!(!inside(&b, at(z1 + step), 0.0), "after {}", z1);
-                }
-                None => {
-                    for i in 0..=4000 {
-                        prop_assert!(!inside(&b, at(i as f64 * 0.01), -1e-9), "at {}", i);
-                    }
-                }
-            }
-        }
     }
 }
