@@ -147,17 +147,24 @@ mod ffi {
         ) -> Result<()>;
         /// Builds the particles now (normally done by `render`) and reports them.
         fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
+        /// The smallest and largest view depth of any particle's support for the camera set
+        /// (`[zmin, zmax]`, empty without particles in front of it): what MPI ranks reduce
+        /// over all of them and pass to `set_part` as `support_depths`.
+        fn support_depths(self: &mut Renderer) -> Result<Vec<f64>>;
+        /// The part of a data set these particles are, for the renders that follow (an MPI
+        /// rank's): `crop` is empty or a world-space box (xmin, xmax, ymin, ymax, zmin, zmax,
+        /// as vtkVolumeMapper's CroppingRegionPlanes) outside which nothing is composited;
+        /// `support_depths` is empty or `[zmin, zmax]` of the whole data set, over which the
+        /// depth samples are placed (RenderParams::support_depths). Empty both: the whole.
+        fn set_part(self: &mut Renderer, crop: &[f64], support_depths: &[f64]) -> Result<()>;
         /// Renders a `width x height` image, rows top first. `depth_limit` is empty or one
-        /// view depth per pixel (+inf = nothing opaque). `crop` is empty or a world-space box
-        /// (xmin, xmax, ymin, ymax, zmin, zmax, as vtkVolumeMapper's CroppingRegionPlanes):
-        /// only the part of each ray inside it is composited. Writes premultiplied RGBA
+        /// view depth per pixel (+inf = nothing opaque). Writes premultiplied RGBA
         /// (`4 * width * height`) and the view depth where opacity passed 1/2 (+inf never).
         fn render(
             self: &mut Renderer,
             width: u32,
             height: u32,
             depth_limit: &[f32],
-            crop: &[f64],
             rgba: &mut [f32],
             depth: &mut [f32],
         ) -> Result<RenderInfo>;
@@ -225,6 +232,14 @@ pub struct Renderer {
     tf: Option<TransferFunction>,
     /// The backend opened for (backend, adapter), kept across frames.
     backend: Option<OpenBackend>,
+    part: Part,
+}
+
+/// What `set_part` said: the crop box (min and max corners) and the whole's support depths.
+#[derive(Default, Clone, Copy)]
+struct Part {
+    crop: Option<([f64; 3], [f64; 3])>,
+    support_depths: Option<(f64, f64)>,
 }
 
 struct OpenBackend {
@@ -266,6 +281,7 @@ fn new_renderer() -> Box<Renderer> {
         camera: None,
         tf: None,
         backend: None,
+        part: Part::default(),
     })
 }
 
@@ -456,6 +472,40 @@ impl Renderer {
         guarded("prepare", || self.prepared().map(|p| p.info.clone()))
     }
 
+    fn set_part(&mut self, crop: &[f64], support_depths: &[f64]) -> Result<(), String> {
+        guarded("set_part", || {
+            let crop = match crop {
+                [] => None,
+                [x0, x1, y0, y1, z0, z1] => Some(([*x0, *y0, *z0], [*x1, *y1, *z1])),
+                _ => return Err(format!("crop box has {} values, not 6", crop.len())),
+            };
+            let support_depths = match support_depths {
+                [] => None,
+                [lo, hi] if lo.is_finite() && hi.is_finite() && lo <= hi => Some((*lo, *hi)),
+                [lo, hi] => return Err(format!("support depths {lo}..{hi} are not a range")),
+                _ => {
+                    let n = support_depths.len();
+                    return Err(format!("support depths: {n} values, not 2"));
+                }
+            };
+            self.part = Part {
+                crop,
+                support_depths,
+            };
+            Ok(())
+        })
+    }
+
+    fn support_depths(&mut self) -> Result<Vec<f64>, String> {
+        guarded("support_depths", || {
+            let camera = self.camera.clone().ok_or("fluidcast: no camera set")?;
+            let frame = camera.frame(1, 1).map_err(|e| e.to_string())?;
+            let p = self.prepared()?;
+            Ok(fluidcast_render::support_depth_extent(&p.particles, &frame)
+                .map_or(Vec::new(), |(lo, hi)| vec![lo, hi]))
+        })
+    }
+
     fn prepared(&mut self) -> Result<&Prepared, String> {
         if self.prepared.is_none() {
             let s = self
@@ -538,7 +588,6 @@ impl Renderer {
         width: u32,
         height: u32,
         depth_limit: &[f32],
-        crop: &[f64],
         rgba: &mut [f32],
         depth: &mut [f32],
     ) -> Result<ffi::RenderInfo, String> {
@@ -573,10 +622,9 @@ impl Renderer {
                 ..Default::default()
             };
             let name = self.name();
-            if !crop.is_empty() {
-                let [x0, x1, y0, y1, z0, z1] = <[f64; 6]>::try_from(crop)
-                    .map_err(|_| format!("crop box has {} values, not 6", crop.len()))?;
-                fluidcast_render::crop_to_box(&mut params, &camera, [x0, y0, z0], [x1, y1, z1])
+            params.support_depths = self.part.support_depths;
+            if let Some((lo, hi)) = self.part.crop {
+                fluidcast_render::crop_to_box(&mut params, &camera, lo, hi)
                     .map_err(|e| format!("{name}: {e}"))?;
             }
             let t = Instant::now();
@@ -714,8 +762,14 @@ mod tests {
         let (w, h) = (40u32, 30u32);
         let mut rgba = vec![0f32; 4 * 40 * 30];
         let mut depth = vec![0f32; 40 * 30];
-        let info = r.render(w, h, &[], &[], &mut rgba, &mut depth).unwrap();
+        let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
         assert_eq!(info.particles, 216);
+        // The cube (0..0.5, support 0.2) seen from z = 3: supports from 2.3 to 3.2 deep.
+        let d = r.support_depths().unwrap();
+        assert!(
+            (d[0] - 2.3).abs() < 1e-6 && (d[1] - 3.2).abs() < 1e-6,
+            "{d:?}"
+        );
         assert!(info.samples > 0);
         assert!(rgba.chunks(4).any(|p| p[3] > 0.5));
         // Same as the renderer given the same raw arrays another way: as an ASCII .vtu read by
@@ -779,13 +833,13 @@ mod tests {
         let (w, h) = (40u32, 30u32);
         let mut cpu = vec![0f32; 4 * 40 * 30];
         let mut depth = vec![0f32; 40 * 30];
-        let info = r.render(w, h, &[], &[], &mut cpu, &mut depth).unwrap();
+        let info = r.render(w, h, &[], &mut cpu, &mut depth).unwrap();
         assert!(info.device.starts_with("CPU"), "{}", info.device);
         let mut s = settings();
         s.backend = 2;
         r.configure(&s).unwrap();
         let mut gpu = vec![0f32; 4 * 40 * 30];
-        let info = match r.render(w, h, &[], &[], &mut gpu, &mut depth) {
+        let info = match r.render(w, h, &[], &mut gpu, &mut depth) {
             Ok(i) => i,
             Err(e) if std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1") => {
                 return eprintln!("SKIPPED: {e}");
@@ -804,7 +858,7 @@ mod tests {
             b.renderer.gpu().unwrap() as *const fluidcast_backend::Gpu
         };
         let first = held(&r);
-        r.render(w, h, &[], &[], &mut gpu, &mut depth).unwrap();
+        r.render(w, h, &[], &mut gpu, &mut depth).unwrap();
         assert_eq!(first, held(&r), "the GPU was reopened for the second frame");
         s.backend = 7;
         let e = r.configure(&s).unwrap_err();
@@ -824,7 +878,7 @@ mod tests {
         r.configure(&s).unwrap();
         let mut rgba = vec![0f32; 4];
         let mut depth = vec![0f32; 1];
-        let e = r.render(1, 1, &[], &[], &mut rgba, &mut depth).unwrap_err();
+        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
         assert!(e.contains("test cube") && e.contains("nope"), "{e}");
 
         let mut r = new_renderer();
@@ -835,7 +889,7 @@ mod tests {
         s.support_radius = 0.0;
         s.radius_array = "h".into();
         r.configure(&s).unwrap();
-        let e = r.render(1, 1, &[], &[], &mut rgba, &mut depth).unwrap_err();
+        let e = r.render(1, 1, &[], &mut rgba, &mut depth).unwrap_err();
         assert!(e.contains("support radius") && e.contains("NaN"), "{e}");
 
         let mut r = new_renderer();
@@ -852,22 +906,22 @@ mod tests {
         s.kernel = "bogus".into();
         assert!(r.configure(&s).unwrap_err().contains("bogus"));
         assert!(r
-            .render(2, 2, &[1.0], &[], &mut [0.0; 16], &mut [0.0; 4])
+            .render(2, 2, &[1.0], &mut [0.0; 16], &mut [0.0; 4])
             .unwrap_err()
             .contains("depth limit"));
+        let part_error =
+            |r: &mut Renderer, crop: &[f64], depths: &[f64]| r.set_part(crop, depths).unwrap_err();
+        assert!(part_error(&mut r, &[1.0; 3], &[]).contains("crop box has 3 values"));
+        assert!(part_error(&mut r, &[], &[1.0]).contains("support depths: 1 values"));
+        assert!(part_error(&mut r, &[], &[2.0, f64::NAN]).contains("not a range"));
+        assert!(part_error(&mut r, &[], &[3.0, 2.0]).contains("not a range"));
+        // A crop box that is not a box fails at the render, which names it.
+        let mut r = new_renderer();
+        ready(&mut r);
+        r.set_part(&[0.0, 1.0, 0.0, f64::NAN, 0.0, 1.0], &[])
+            .unwrap();
         assert!(r
-            .render(2, 2, &[], &[1.0, 1.0, 1.0], &mut [0.0; 16], &mut [0.0; 4])
-            .unwrap_err()
-            .contains("crop box has 3 values"));
-        assert!(r
-            .render(
-                2,
-                2,
-                &[],
-                &[0.0, 1.0, 0.0, f64::NAN, 0.0, 1.0],
-                &mut [0.0; 16],
-                &mut [0.0; 4]
-            )
+            .render(2, 2, &[], &mut [0.0; 16], &mut [0.0; 4])
             .unwrap_err()
             .contains("crop box"));
     }

@@ -290,7 +290,14 @@ fn gpu_matches_cpu_cropped_to_a_depth_interval() {
             .collect()
     };
     let (near, far) = (plane(1.9, 0.3), plane(2.3, 0.2));
-    for (crop, limit) in [(&near, None), (&near, Some(&far))] {
+    // The last case places the samples over a wider depth range (a whole data set's, of which
+    // these particles would be one MPI rank's part).
+    let cases = [
+        (&near, None, None),
+        (&near, Some(&far), None),
+        (&near, Some(&far), Some((1.0, 3.5))),
+    ];
+    for (crop, limit, support_depths) in cases {
         for (name, adaptive) in modes() {
             let prm = RenderParams {
                 width: w,
@@ -298,13 +305,14 @@ fn gpu_matches_cpu_cropped_to_a_depth_interval() {
                 adaptive,
                 depth_near: Some(crop.clone()),
                 depth_limit: limit.cloned(),
+                support_depths,
                 ..Default::default()
             };
             let (max, rmse, frac) = compare(&g, &p, &cam, &tf, &prm);
-            let what = if limit.is_some() {
-                "near and far"
-            } else {
-                "near"
+            let what = match (limit, support_depths) {
+                (None, _) => "near",
+                (_, None) => "near and far",
+                _ => "near, far and support depths",
             };
             eprintln!("{what} {name}: max {max:.3e}, RMSE {rmse:.2e}, above 1e-3 {frac:.2e}");
             assert!(

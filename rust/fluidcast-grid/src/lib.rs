@@ -103,10 +103,19 @@ fn extent(a: (f64, f64), b: (f64, f64)) -> (f64, f64) {
 /// arithmetic, so the same sample depths), without keeping the view-space particles: what the
 /// GPU grid places its depth samples by.
 pub fn support_depth_range(particles: &Particles, frame: &ViewFrame) -> Option<(f64, f64)> {
+    let (zmin, zmax) = support_depth_extent(particles, frame)?;
+    depth_range(zmin, zmax, frame.parallel.is_none())
+}
+
+/// The smallest and largest view depth of any particle's support, `(zmin, zmax)` (the same f64
+/// arithmetic as [`view_particles`]), before [`depth_range`] clamps them; `None` without
+/// particles. Renderers that hold parts of one data set (MPI ranks) reduce these over all
+/// parts and pass the result as `support_depths` so that all sample the same depths.
+pub fn support_depth_extent(particles: &Particles, frame: &ViewFrame) -> Option<(f64, f64)> {
     if particles.is_empty() {
         return None;
     }
-    let (zmin, zmax) = (0..particles.len())
+    let extent_of = (0..particles.len())
         .into_par_iter()
         .map(|j| {
             let p = particles.positions[j];
@@ -115,7 +124,7 @@ pub fn support_depth_range(particles: &Particles, frame: &ViewFrame) -> Option<(
             (v.z - h, v.z + h)
         })
         .reduce(|| (f64::INFINITY, f64::NEG_INFINITY), extent);
-    depth_range(zmin, zmax, frame.parallel.is_none())
+    Some(extent_of)
 }
 
 /// The pixels `[x0, x1, y0, y1]` (ends exclusive) of ray bundle `b` when a `width × height`
@@ -474,8 +483,24 @@ impl PerspectiveGrid {
         params: GridParams,
         sampling_scale: f64,
     ) -> Result<PerspectiveGrid, GridError> {
+        PerspectiveGrid::build_within(particles, frame, params, sampling_scale, None)
+    }
+
+    /// [`PerspectiveGrid::build`] with the depth samples placed over `support_depths`
+    /// (`(zmin, zmax)` as [`support_depth_extent`] finds them, of a whole data set these
+    /// particles are part of) instead of over these particles' own.
+    pub fn build_within(
+        particles: &Particles,
+        frame: &ViewFrame,
+        params: GridParams,
+        sampling_scale: f64,
+        support_depths: Option<(f64, f64)>,
+    ) -> Result<PerspectiveGrid, GridError> {
         params.validate()?;
-        let vp = view_particles(particles, frame);
+        let mut vp = view_particles(particles, frame);
+        if let Some((zmin, zmax)) = support_depths {
+            vp.range = depth_range(zmin, zmax, frame.parallel.is_none());
+        }
         let d = params.bundle;
         let (bx, by) = (frame.width.div_ceil(d), frame.height.div_ceil(d));
         let nb = (bx * by) as usize;

@@ -69,7 +69,13 @@ pub fn plan_adaptive(
     validate(params)?;
     let (w, h) = (params.width, params.height);
     let frame = camera.frame(w, h)?;
-    let grid = PerspectiveGrid::build(particles, &frame, params.grid, params.sampling_scale)?;
+    let grid = PerspectiveGrid::build_within(
+        particles,
+        &frame,
+        params.grid,
+        params.sampling_scale,
+        params.support_depths,
+    )?;
     let mut stats = RenderStats {
         particles: particles.len(),
         particles_visible: grid.particles_visible,

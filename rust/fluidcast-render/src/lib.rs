@@ -32,7 +32,7 @@ pub use adaptive::{
     AdaptiveRender, SURFACE_THRESHOLD,
 };
 pub use crop::crop_to_box;
-pub use fluidcast_grid::{GridError, GridParams, SampleDepths};
+pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
 pub use reference::render_reference;
@@ -76,6 +76,12 @@ pub struct RenderParams {
     /// rank owns under MPI: the images of regions that partition space, composited in
     /// visibility order, equal the image of the whole. `None`: every ray starts at the camera.
     pub depth_near: Option<Arc<[f32]>>,
+    /// `(zmin, zmax)`: the smallest and largest view depth of any particle's support in the
+    /// whole data set when the particles rendered are only part of it (an MPI rank's, see
+    /// [`fluidcast_grid::support_depth_extent`]): the depth samples are placed over it, as
+    /// one renderer of all the particles places them, so that the parts' images composite to
+    /// the whole's. `None`: over these particles' own.
+    pub support_depths: Option<(f64, f64)>,
 }
 
 impl RenderParams {
@@ -130,6 +136,7 @@ impl Default for RenderParams {
             adaptive: PlanParams::default(),
             depth_limit: None,
             depth_near: None,
+            support_depths: None,
         }
     }
 }
@@ -149,6 +156,8 @@ pub enum RenderError {
     MinTransmittance(f64),
     #[error("{0} has {1} values for a {2}x{3} image")]
     DepthLimitSize(&'static str, usize, u32, u32),
+    #[error("support depths {0}..{1} are not a finite range")]
+    SupportDepths(f64, f64),
     #[error("crop box {0:?}..{1:?} is not a finite box (each min <= max)")]
     CropBox([f64; 3], [f64; 3]),
     #[error("{0} holds NaN or a negative depth")]
@@ -219,6 +228,11 @@ pub fn validate(params: &RenderParams) -> Result<(), RenderError> {
         pixels.saturating_mul(IMAGE_BYTES_PER_PIXEL),
     )
     .map_err(GridError::from)?;
+    if let Some((lo, hi)) = params.support_depths {
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return Err(RenderError::SupportDepths(lo, hi));
+        }
+    }
     let limits = [
         ("depth limit", &params.depth_limit),
         ("depth near", &params.depth_near),

@@ -40,7 +40,10 @@ impl RayView {
             height: h,
             ..Default::default()
         };
-        let vp = view_particles(particles, &frame);
+        let mut vp = view_particles(particles, &frame);
+        if let Some((zmin, zmax)) = params.support_depths {
+            vp.range = fluidcast_grid::depth_range(zmin, zmax, frame.parallel.is_none());
+        }
         let depths = match vp.range {
             Some((near, far)) => {
                 let d = SampleDepths::new(

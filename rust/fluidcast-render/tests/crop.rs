@@ -4,7 +4,8 @@ mod common;
 
 use common::{cloud, cloud_view};
 use fluidcast_render::{
-    crop_to_box, render_adaptive, render_reference, PlanParams, RenderError, RenderParams,
+    crop_to_box, render_adaptive, render_reference, support_depth_extent, PlanParams, RenderError,
+    RenderParams,
 };
 use fluidcast_sph::{FieldKind, Particles};
 use fluidcast_view::{Camera, TransferFunction};
@@ -94,6 +95,100 @@ fn boxes_that_partition_space_composite_to_the_whole_image() {
                 "azimuth {azimuth}, parallel {parallel}, adaptive {adaptive}: {max}"
             );
         }
+    }
+}
+
+/// The particles of `p` within `halo` of the box (its own and its neighbours' halo).
+fn part(p: &Particles, (lo, hi): Box3, halo: f32) -> Particles {
+    let keep: Vec<usize> = (0..p.len())
+        .filter(|&j| {
+            let x = p.positions[j];
+            let d2: f32 = (0..3)
+                .map(|k| {
+                    (lo[k] as f32 - x[k])
+                        .max(x[k] - hi[k] as f32)
+                        .max(0.0)
+                        .powi(2)
+                })
+                .sum();
+            d2 <= halo * halo
+        })
+        .collect();
+    let pick = |v: &[f32]| keep.iter().map(|&j| v[j]).collect::<Vec<f32>>();
+    Particles {
+        positions: keep.iter().map(|&j| p.positions[j]).collect(),
+        radii: pick(&p.radii),
+        volumes: pick(&p.volumes),
+        values: pick(&p.values),
+        masses: pick(&p.masses),
+        ..p.clone()
+    }
+}
+
+/// What an MPI rank renders: only the particles in and near its box (a halo of 2 H), cropped
+/// to the box, with the whole data set's support depths. The ranks' images composite to the
+/// image of all particles; without the whole's support depths each part places its samples
+/// over its own particles' depths and they do not.
+#[test]
+fn parts_with_halos_and_the_wholes_support_depths_composite_to_the_whole_image() {
+    // Radii 0.06..0.08 in the unit cube: a halo of 2 H holds a part of the others' particles.
+    let p = fluidcast_testkit::cloud(6000, 11, (0.06, 0.02));
+    let halo = 2.0 * p.radii.iter().copied().fold(0.0f32, f32::max);
+    let (cam, tf) = cloud_view(30.0, 20.0, false, FieldKind::Csph);
+    let base = RenderParams {
+        width: 48,
+        height: 40,
+        min_transmittance: 0.0,
+        adaptive: PlanParams {
+            tolerance: None,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let frame = cam.frame(base.width, base.height).unwrap();
+    let whole_depths = support_depth_extent(&p, &frame).unwrap();
+    for adaptive in [false, true] {
+        let whole = render(&p, &cam, &tf, &base, adaptive);
+        let mut errors = Vec::new();
+        for shared in [true, false] {
+            let mut over = vec![[0.0f32; 4]; whole.rgba.len()];
+            for (lo, hi) in kd_boxes(&cam, 0.1, -0.2) {
+                // Outer faces far out: only shared faces cut (as the ParaView representation).
+                let far = |v: f64, edge: f64| if v.abs() == 1.0 { edge } else { v };
+                let lo = lo.map(|v| far(v, -1e30));
+                let hi = hi.map(|v| far(v, 1e30));
+                let mine = part(&p, (lo, hi), halo);
+                assert!(mine.len() < p.len(), "the halo holds everything");
+                let mut prm = RenderParams {
+                    support_depths: shared.then_some(whole_depths),
+                    ..base.clone()
+                };
+                crop_to_box(&mut prm, &cam, lo, hi).unwrap();
+                let img = render(&mine, &cam, &tf, &prm, adaptive);
+                for (o, px) in over.iter_mut().zip(&img.rgba) {
+                    let t = 1.0 - o[3];
+                    for c in 0..4 {
+                        o[c] += t * px[c];
+                    }
+                }
+            }
+            let max = over
+                .iter()
+                .zip(&whole.rgba)
+                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
+                .fold(0.0f32, f32::max);
+            errors.push(max);
+        }
+        assert!(
+            errors[0] <= 2e-6,
+            "adaptive {adaptive}: parts differ by {}",
+            errors[0]
+        );
+        assert!(
+            errors[1] > 1e-3,
+            "adaptive {adaptive}: own depths agree too ({}): the scene tests nothing",
+            errors[1]
+        );
     }
 }
 
