@@ -303,6 +303,12 @@ double* vtkFluidCastVolumeMapper::GetBounds()
     {
       this->Bounds[2 * k] -= grow;
       this->Bounds[2 * k + 1] += grow;
+      if (this->Cropping)
+      {
+        const double* c = this->CroppingRegionPlanes;
+        this->Bounds[2 * k] = std::max(this->Bounds[2 * k], c[2 * k]);
+        this->Bounds[2 * k + 1] = std::max(this->Bounds[2 * k], std::min(this->Bounds[2 * k + 1], c[2 * k + 1]));
+      }
     }
   }
   return this->Bounds;
@@ -484,9 +490,74 @@ int vtkFluidCastVolumeMapper::UpdateParticles()
 }
 
 //------------------------------------------------------------------------------
+int vtkFluidCastVolumeMapper::ComputeSupportDepthRange(vtkCamera* cam, double range[2])
+{
+  if (vtkAlgorithm* algo = this->GetInputAlgorithm())
+  {
+    algo->Update();
+  }
+  vtkDataSet* in = this->GetDataSetInput();
+  if (!cam || !in || in->GetNumberOfPoints() == 0)
+  {
+    return 0;
+  }
+  vtkPointSet* input = this->UpdatedInput();
+  if (!input || !this->Upload(input))
+  {
+    return 0;
+  }
+  try
+  {
+    fluidcast::Renderer& r = *this->Impl->Renderer;
+    r.set_camera(Describe(cam));
+    rust::Vec<double> d = r.support_depths();
+    if (d.size() != 2)
+    {
+      return 0;
+    }
+    range[0] = d[0];
+    range[1] = d[1];
+    return 1;
+  }
+  catch (const rust::Error& e)
+  {
+    FLUIDCAST_FAIL(e.what());
+    return 0;
+  }
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastVolumeMapper::SetSharedSupportDepthRange(double zmin, double zmax)
+{
+  this->SharedSupportDepths[0] = zmin;
+  this->SharedSupportDepths[1] = zmax;
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastVolumeMapper::ClearSharedSupportDepthRange()
+{
+  this->SetSharedSupportDepthRange(1, 0);
+}
+
+//------------------------------------------------------------------------------
 void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 {
   const auto start = std::chrono::steady_clock::now();
+  if (this->Cropping)
+  {
+    // A region with no particles in or near it (an MPI rank's box) is empty, not an error.
+    if (vtkAlgorithm* algo = this->GetInputAlgorithm())
+    {
+      algo->Update();
+    }
+    vtkDataSet* in = this->GetDataSetInput();
+    if (in && in->GetNumberOfPoints() == 0)
+    {
+      this->LastError.clear();
+      this->LastSamples = 0;
+      return;
+    }
+  }
   vtkPointSet* input = this->UpdatedInput();
   if (!input || !this->Upload(input))
   {
@@ -526,6 +597,10 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     fluidcast::Renderer& r = *this->Impl->Renderer;
     r.set_camera(Describe(cam));
     SetTransferFunction(r, vol->GetProperty());
+    const double* c = this->CroppingRegionPlanes;
+    const double* zs = this->SharedSupportDepths;
+    r.set_part(rust::Slice<const double>(c, this->Cropping ? 6 : 0),
+      rust::Slice<const double>(zs, zs[0] <= zs[1] ? 2 : 0));
     fluidcast::RenderInfo info = r.render(static_cast<uint32_t>(sw), static_cast<uint32_t>(sh),
       rust::Slice<const float>(limit.data(), limit.size()),
       rust::Slice<float>(rgba.data(), rgba.size()), rust::Slice<float>(depth.data(), depth.size()));
@@ -656,5 +731,12 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "MinimumImageSampleDistance: " << this->MinimumImageSampleDistance << "\n";
   os << indent << "MaximumImageSampleDistance: " << this->MaximumImageSampleDistance << "\n";
   os << indent << "LastImageSampleDistance: " << this->LastImageSampleDistance << "\n";
+  os << indent << "Cropping: " << this->Cropping << "\n";
+  os << indent << "CroppingRegionPlanes: (" << this->CroppingRegionPlanes[0];
+  for (int k = 1; k < 6; ++k)
+  {
+    os << ", " << this->CroppingRegionPlanes[k];
+  }
+  os << ")\n";
   os << indent << "LastError: " << (this->LastError.empty() ? "(none)" : this->LastError) << "\n";
 }

@@ -41,6 +41,7 @@
 #include <string> // for std::string
 #include <vector> // for std::vector
 
+class vtkCamera;
 class vtkPointSet;
 class vtkRenderer;
 class vtkVolume;
@@ -172,6 +173,39 @@ public:
 
   ///@{
   /**
+   * Cropping, with vtkVolumeMapper's names: with Cropping on, only the part of the field
+   * inside the world-space box CroppingRegionPlanes (xmin, xmax, ymin, ymax, zmin, zmax) is
+   * rendered (vtkVolumeMapper's VTK_CROP_SUBVOLUME; the other region flags are not offered).
+   * Particles outside the box still contribute to the field inside it. Boxes that partition
+   * space render to images that, composited in visibility order, equal the uncropped image:
+   * ParaView's fluidcast representation gives each MPI rank the box it owns this way. With
+   * Cropping on, an input with no points draws nothing without an error (an empty region).
+   */
+  vtkSetClampMacro(Cropping, vtkTypeBool, 0, 1);
+  vtkGetMacro(Cropping, vtkTypeBool);
+  vtkBooleanMacro(Cropping, vtkTypeBool);
+  vtkSetVector6Macro(CroppingRegionPlanes, double);
+  vtkGetVectorMacro(CroppingRegionPlanes, double, 6);
+  ///@}
+
+  ///@{
+  /**
+   * Sample depths shared by the parts of one data set (ParaView's representation uses it in
+   * parallel; other code rarely needs it). Each frame places its depth samples over the view
+   * depths its particles' supports span; renderers that each hold a part of one data set (MPI
+   * ranks) must place them over the whole's span instead, or their images will not add up to
+   * the image of the whole. ComputeSupportDepthRange gives this input's span (zmin, zmax, view
+   * depth in world units) for `cam` (0 without particles, or on bad input: see GetLastError);
+   * the parts reduce them (min zmin, max zmax) and each calls SetSharedSupportDepthRange
+   * before rendering. Setting it does not modify the mapper (the particles stay prepared).
+   */
+  int ComputeSupportDepthRange(vtkCamera* cam, double range[2]);
+  void SetSharedSupportDepthRange(double zmin, double zmax);
+  void ClearSharedSupportDepthRange();
+  ///@}
+
+  ///@{
+  /**
    * After a render: particles used, the largest support radius (world units), depth samples
    * composited and the frame's wall-clock time in this mapper (milliseconds).
    */
@@ -198,7 +232,8 @@ public:
   int UpdateParticles();
 
   /**
-   * Bounds of the input grown by the particles' support radius (the extent of the field).
+   * Bounds of the input grown by the particles' support radius (the extent of the field),
+   * cut to CroppingRegionPlanes when Cropping is on.
    */
   double* GetBounds() override;
   void GetBounds(double bounds[6]) override { this->Superclass::GetBounds(bounds); }
@@ -226,6 +261,10 @@ protected:
   int MinimumImageSampleDistance = 1;
   int MaximumImageSampleDistance = 8;
   int LastImageSampleDistance = 1;
+  vtkTypeBool Cropping = 0;
+  double CroppingRegionPlanes[6] = { 0, 1, 0, 1, 0, 1 };
+  /** (zmin, zmax) when set with SetSharedSupportDepthRange, else zmin > zmax. */
+  double SharedSupportDepths[2] = { 1, 0 };
 
   vtkIdType LastParticleCount = 0;
   double LastMaxRadius = 0.0;
