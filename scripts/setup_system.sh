@@ -9,7 +9,7 @@
 set -euo pipefail
 packages=(
   libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 mesa-vulkan-drivers libvulkan1
-  paraview paraview-dev python3-paraview cmake xvfb xauth
+  paraview paraview-dev python3-paraview cmake xvfb xauth openmpi-bin
   libglew-dev libopenmpi-dev libexpat1-dev libdouble-conversion-dev liblz4-dev libutfcpp-dev
   libtiff-dev libfreetype-dev libgl2ps-dev libjpeg-dev liblzma-dev libxml2-dev libpng-dev
   libtheora-dev zlib1g-dev libeigen3-dev

@@ -1,11 +1,15 @@
 #include "vtkFluidCastRepresentation.h"
 
+#include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
+#include "vtkCommunicator.h"
+#include "fluidcastDistribute.h"
 #include "vtkDataObject.h"
 #include "vtkFluidCastVolumeMapper.h"
 #include "vtkInformation.h"
 #include "vtkInformationVector.h"
 #include "vtkMath.h"
+#include "vtkMultiProcessController.h"
 #include "vtkObjectFactory.h"
 #include "vtkPVLODVolume.h"
 #include "vtkPVRenderView.h"
@@ -17,6 +21,7 @@
 #include "vtkVolumeProperty.h"
 
 #include <cstring>
+#include <limits>
 
 vtkStandardNewMacro(vtkFluidCastRepresentation);
 
@@ -46,17 +51,40 @@ int vtkFluidCastRepresentation::RequestData(
 {
   vtkMath::UninitializeBounds(this->DataBounds);
   this->Cache = nullptr;
-  if (inputVector[0]->GetNumberOfInformationObjects() == 1)
+  this->Distributed = false;
+  this->OwnedParticles = this->HaloParticles = 0;
+  vtkMultiProcessController* controller = vtkMultiProcessController::GetGlobalController();
+  vtkPointSet* input = inputVector[0]->GetNumberOfInformationObjects() == 1
+    ? vtkPointSet::GetData(inputVector[0], 0)
+    : nullptr;
+  if (controller && controller->GetNumberOfProcesses() > 1)
   {
-    if (vtkPointSet* input = vtkPointSet::GetData(inputVector[0], 0))
+    // Collective: every rank's representation updates together.
+    this->UpdateMapperParameters();
+    fluidcast_paraview::Partition part =
+      fluidcast_paraview::Distribute(input, this->Mapper, controller);
+    this->Cache = part.Particles;
+    this->Distributed = part.Region.IsValid();
+    this->OwnedParticles = part.Owned;
+    this->HaloParticles = part.Halo;
+    if (this->Distributed)
     {
-      this->Cache.TakeReference(input->NewInstance());
-      this->Cache->ShallowCopy(input);
-      // The field reaches one support radius beyond the particles: let the mapper tell.
-      this->Mapper->SetInputData(this->Cache);
-      this->UpdateMapperParameters();
-      this->Mapper->GetBounds(this->DataBounds);
+      part.Region.GetBounds(this->Region);
+      part.Region.GetBounds(this->DataBounds);
+      fluidcast_paraview::CroppingPlanes(part.Region, part.Extent, this->CroppingPlanes);
     }
+    vtkDebugMacro(<< "rank " << controller->GetLocalProcessId() << ": " << part.Owned
+                  << " particles owned, " << part.Halo << " halo, support radius "
+                  << part.SupportRadius << " from " << part.RadiusNote);
+  }
+  else if (input)
+  {
+    this->Cache.TakeReference(input->NewInstance());
+    this->Cache->ShallowCopy(input);
+    // The field reaches one support radius beyond the particles: let the mapper tell.
+    this->Mapper->SetInputData(fluidcast_paraview::WithoutHalo(this->Cache));
+    this->UpdateMapperParameters();
+    this->Mapper->GetBounds(this->DataBounds);
   }
   if (!this->Cache)
   {
@@ -75,17 +103,69 @@ int vtkFluidCastRepresentation::ProcessViewRequest(
   }
   if (request_type == vtkPVView::REQUEST_UPDATE())
   {
+    // Ordered compositing by the boxes the ranks own (in parallel; one box otherwise): the
+    // view orders the ranks' images by these bounds and moves no particle itself.
     outInfo->Set(vtkPVRenderView::NEED_ORDERED_COMPOSITING(), 1);
     vtkPVRenderView::SetPiece(inInfo, this, this->Cache);
     vtkPVRenderView::SetGeometryBounds(inInfo, this, this->DataBounds);
+    vtkPVRenderView::SetOrderedCompositingConfiguration(
+      inInfo, this, vtkPVRenderView::USE_BOUNDS_FOR_REDISTRIBUTION, this->DataBounds);
   }
   else if (request_type == vtkPVView::REQUEST_RENDER())
   {
     vtkPointSet* data = vtkPointSet::SafeDownCast(vtkPVView::GetDeliveredPiece(inInfo, this));
-    this->Mapper->SetInputData(data);
+    if (this->Distributed)
+    {
+      // This rank's own particles and halo: render the field inside its box only, with the
+      // same rays and depth samples as every other rank.
+      this->Mapper->SetCroppingRegionPlanes(this->CroppingPlanes);
+      this->Mapper->SetCropping(1);
+      this->Mapper->SetInputData(data);
+      this->UpdateMapperParameters();
+      this->ShareSupportDepths(vtkPVRenderView::SafeDownCast(this->GetView()));
+      return 1;
+    }
+    else
+    {
+      // One process, or every rank's piece gathered here: halo copies would count twice.
+      this->Mapper->SetCropping(0);
+      this->Mapper->ClearSharedSupportDepthRange();
+      if (data != this->GatheredFrom || (data && data->GetMTime() > this->GatheredTime))
+      {
+        this->Gathered = fluidcast_paraview::WithoutHalo(data);
+        this->GatheredFrom = data;
+        this->GatheredTime.Modified();
+      }
+      this->Mapper->SetInputData(this->Gathered);
+    }
     this->UpdateMapperParameters();
   }
   return 1;
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastRepresentation::ShareSupportDepths(vtkPVRenderView* view)
+{
+  // Collective: REQUEST_RENDER reaches every rank's representation in each parallel render
+  // (the mapper's Render may not: a renderer culls a volume whose box is out of view).
+  const double inf = std::numeric_limits<double>::infinity();
+  double local[2] = { inf, inf }, all[2], range[2];
+  vtkCamera* cam = view ? view->GetActiveCamera() : nullptr;
+  if (this->Mapper->ComputeSupportDepthRange(cam, range))
+  {
+    local[0] = range[0];
+    local[1] = -range[1];
+  }
+  vtkMultiProcessController::GetGlobalController()->AllReduce(
+    local, all, 2, vtkCommunicator::MIN_OP);
+  if (all[0] <= -all[1])
+  {
+    this->Mapper->SetSharedSupportDepthRange(all[0], -all[1]);
+  }
+  else
+  {
+    this->Mapper->ClearSharedSupportDepthRange();
+  }
 }
 
 //------------------------------------------------------------------------------
@@ -99,6 +179,8 @@ void vtkFluidCastRepresentation::UpdateMapperParameters()
   }
   this->Mapper->SelectScalarArray(name);
   this->Mapper->SetScalarMode(VTK_SCALAR_MODE_USE_POINT_FIELD_DATA);
+  // In parallel every rank must cast the same rays: no per-rank adjustment to its own timing.
+  this->Mapper->SetAutoAdjustSampleDistances(this->Distributed ? 0 : this->AutoAdjust);
   // Vectors: the colour map's vector mode (ParaView's "Magnitude" / "X" / "Y" / "Z").
   if (vtkColorTransferFunction* ctf = this->Property->GetRGBTransferFunction(0))
   {
@@ -185,7 +267,8 @@ void vtkFluidCastRepresentation::SetAdapter(const char* name)
 
 void vtkFluidCastRepresentation::SetAutoAdjustSampleDistances(int on)
 {
-  this->Mapper->SetAutoAdjustSampleDistances(on);
+  this->AutoAdjust = on;
+  this->Mapper->SetAutoAdjustSampleDistances(this->Distributed ? 0 : on);
 }
 
 void vtkFluidCastRepresentation::SetImageSampleDistance(int s)
@@ -199,9 +282,18 @@ void vtkFluidCastRepresentation::SetMaximumImageSampleDistance(int s)
 }
 
 //------------------------------------------------------------------------------
+const char* vtkFluidCastRepresentation::GetLastError()
+{
+  return this->Mapper->GetLastError();
+}
+
+//------------------------------------------------------------------------------
 void vtkFluidCastRepresentation::PrintSelf(ostream& os, vtkIndent indent)
 {
   this->Superclass::PrintSelf(os, indent);
+  os << indent << "Distributed: " << this->Distributed << "\n";
+  os << indent << "OwnedParticles: " << this->OwnedParticles << "\n";
+  os << indent << "HaloParticles: " << this->HaloParticles << "\n";
   os << indent << "Mapper:\n";
   this->Mapper->PrintSelf(os, indent.GetNextIndent());
 }

@@ -8,6 +8,13 @@
  * representation's; the support radius, radius array, kernel and error tolerance are its
  * own properties (fluidcast_representation.xml). With no radius set, the data's
  * "support_radius" field data is used, else twice the mean particle spacing.
+ *
+ * In parallel (pvbatch/pvserver on several MPI ranks) each rank owns a box of space: the
+ * particles are redistributed with a halo of neighbours (fluidcastDistribute.h), each rank
+ * renders the field inside its box only, and ParaView composites the ranks' images in
+ * visibility order of the boxes (USE_BOUNDS_FOR_REDISTRIBUTION ordered compositing), so
+ * the image equals the single-process one. Where the pieces are gathered onto one process
+ * instead (a client rendering locally), the halo copies are dropped.
  */
 #ifndef vtkFluidCastRepresentation_h
 #define vtkFluidCastRepresentation_h
@@ -17,8 +24,11 @@
 
 #include "vtkNew.h"          // for vtkNew
 #include "vtkSmartPointer.h" // for vtkSmartPointer
+#include "vtkTimeStamp.h"    // for vtkTimeStamp
+#include "vtkWeakPointer.h"  // for vtkWeakPointer
 
 class vtkFluidCastVolumeMapper;
+class vtkPVRenderView;
 class vtkPointSet;
 
 class FLUIDCASTPARAVIEWREPRESENTATION_EXPORT vtkFluidCastRepresentation
@@ -54,7 +64,8 @@ public:
    * Forwarded to vtkFluidCastVolumeMapper: interactive renders (ParaView's, while the camera
    * moves) cast one ray per ImageSampleDistance² pixels to fit the interactive frame time,
    * up to MaximumImageSampleDistance; still renders are full resolution. Auto off: every
-   * render uses ImageSampleDistance.
+   * render uses ImageSampleDistance. In parallel every rank must cast the same rays, so
+   * frames use ImageSampleDistance there.
    */
   void SetAutoAdjustSampleDistances(int on);
   void SetImageSampleDistance(int s);
@@ -63,6 +74,18 @@ public:
 
   /** The mapper, for scripts that read LastDevice, LastSamples, ... */
   vtkFluidCastVolumeMapper* GetFluidCastMapper() { return this->Mapper; }
+
+  ///@{
+  /**
+   * In parallel, after an update: the particles this rank owns and the halo copies it holds
+   * of its neighbours' (0 and 0 in a single process), and its box (xmin, xmax, ...).
+   */
+  vtkGetMacro(OwnedParticles, vtkIdType);
+  vtkGetMacro(HaloParticles, vtkIdType);
+  vtkGetVector6Macro(Region, double);
+  /** The mapper's last error ("" when its last render succeeded). */
+  const char* GetLastError();
+  ///@}
 
 protected:
   vtkFluidCastRepresentation();
@@ -73,9 +96,25 @@ protected:
   bool AddToView(vtkView* view) override;
   bool RemoveFromView(vtkView* view) override;
   void UpdateMapperParameters();
+  /** In parallel: the whole data set's support depth range, reduced over the ranks, set on
+   * the mapper so that every rank places its depth samples alike (collective). */
+  void ShareSupportDepths(vtkPVRenderView* view);
 
   vtkNew<vtkFluidCastVolumeMapper> Mapper;
   vtkSmartPointer<vtkPointSet> Cache;
+  /** What the mapper renders when the delivered piece is not this rank's own. */
+  vtkSmartPointer<vtkPointSet> Gathered;
+  vtkWeakPointer<vtkPointSet> GatheredFrom;
+  vtkTimeStamp GatheredTime;
+  /** True when this process redistributed the particles among several ranks. */
+  bool Distributed = false;
+  double Region[6] = { 0, -1, 0, -1, 0, -1 };
+  /** Region as the mapper crops rays: its outer faces far out (fluidcastDistribute.h). */
+  double CroppingPlanes[6] = { 0, -1, 0, -1, 0, -1 };
+  vtkIdType OwnedParticles = 0;
+  vtkIdType HaloParticles = 0;
+  /** The AutoAdjustSampleDistances property (not applied in parallel). */
+  int AutoAdjust = 1;
 
 private:
   vtkFluidCastRepresentation(const vtkFluidCastRepresentation&) = delete;
