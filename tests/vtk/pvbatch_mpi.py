@@ -1,6 +1,7 @@
 """ctest driver: the fluidcast representation in parallel ParaView renders what one rank does.
 
     python3 pvbatch_mpi.py MPIEXEC PVBATCH PLUGIN DATA.vtu ARRAY OUTDIR TOLERANCE
+            [RADIUS_ARRAY SCALE]
 
 Splits DATA.vtu into a .pvtu of 4 pieces (slabs along x, as an MPI code writes one file per
 rank, no ghost points, each piece with the file's field data), renders it with
@@ -88,6 +89,7 @@ def read(path):
 
 def main():
     mpiexec, pvbatch, plugin, data, array, out, tolerance = sys.argv[1:8]
+    radius = sys.argv[8:10]
     tolerance = float(tolerance)
     if not os.path.exists(data):
         if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
@@ -102,7 +104,7 @@ def main():
         where = os.path.join(out, f"ranks{n}")
         cmd = [mpiexec, "--allow-run-as-root", "--oversubscribe", "-n", str(n), pvbatch, "--mpi",
                os.path.join(HERE, "pvbatch_mpi_render.py"), plugin, pvtu, array, where,
-               str(tolerance)]
+               str(tolerance), *radius]
         t = time.monotonic()
         # pvpython (which runs this) is an MPI singleton: its Open MPI/PMIx variables would
         # make the nested mpiexec fail at once.

@@ -2,6 +2,7 @@
 with the "fluidcast" representation and saves one screenshot per view.
 
     mpiexec -n N pvbatch --mpi pvbatch_mpi_render.py PLUGIN DATA.pvtu ARRAY OUTDIR TOLERANCE
+            [RADIUS_ARRAY SCALE]
 
 Writes OUTDIR/<view>.png for each view of VIEWS and OUTDIR/info.json (ranks, and rank 0's
 owned and halo particle counts and box). Runs on rank 0 (pvbatch's other ranks serve).
@@ -26,6 +27,7 @@ from paraview.simple import (
 from paraview import servermanager
 
 plugin, data, array, out, tolerance = sys.argv[1:6]
+radius = sys.argv[6:8]  # optional: FluidCastRadiusArray and FluidCastRadiusScale
 W, H = 320, 240
 # (name, azimuth, elevation) from ParaView's default view down -z: the pieces are slabs along
 # x, and the ranks' boxes split the longest axis, so every view has rays that cross a box face
@@ -57,6 +59,9 @@ display.ScalarOpacityFunction = pwf
 display.ScalarOpacityUnitDistance = 0.1
 display.FluidCastErrorTolerance = float(tolerance)
 display.FluidCastBackend = "CPU"
+if radius:
+    display.FluidCastRadiusArray = radius[0]
+    display.FluidCastRadiusScale = float(radius[1])
 display.FluidCastAutoAdjustSampleDistances = 0
 
 os.makedirs(out, exist_ok=True)
