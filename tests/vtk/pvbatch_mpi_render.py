@@ -24,6 +24,7 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
 )
+
 from paraview import servermanager
 
 plugin, data, array, out, tolerance = sys.argv[1:6]
