@@ -2,7 +2,7 @@
 //! order, give the image of the whole (what each MPI rank renders of the region it owns).
 mod common;
 
-use common::{cloud, cloud_view};
+use common::{cloud, cloud_view, composite_under, max_channel_diff};
 use fluidcast_render::{
     crop_to_box, render_adaptive, render_reference, support_depth_extent, PlanParams, RenderError,
     RenderParams,
@@ -78,18 +78,9 @@ fn boxes_that_partition_space_composite_to_the_whole_image() {
                 let img = render(&p, &cam, &tf, &prm, adaptive);
                 let covered = img.rgba.iter().filter(|px| px[3] > 0.05).count();
                 assert!(covered > 20, "box {lo:?}..{hi:?} shows {covered} pixels");
-                for (o, px) in over.iter_mut().zip(&img.rgba) {
-                    let t = 1.0 - o[3];
-                    for c in 0..4 {
-                        o[c] += t * px[c];
-                    }
-                }
+                composite_under(&mut over, &img.rgba);
             }
-            let max = over
-                .iter()
-                .zip(&whole.rgba)
-                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-                .fold(0.0f32, f32::max);
+            let max = max_channel_diff(&over, &whole.rgba);
             assert!(
                 max <= 2e-6,
                 "azimuth {azimuth}, parallel {parallel}, adaptive {adaptive}: {max}"
@@ -165,18 +156,9 @@ fn parts_with_halos_and_the_wholes_support_depths_composite_to_the_whole_image()
                 };
                 crop_to_box(&mut prm, &cam, lo, hi).unwrap();
                 let img = render(&mine, &cam, &tf, &prm, adaptive);
-                for (o, px) in over.iter_mut().zip(&img.rgba) {
-                    let t = 1.0 - o[3];
-                    for c in 0..4 {
-                        o[c] += t * px[c];
-                    }
-                }
+                composite_under(&mut over, &img.rgba);
             }
-            let max = over
-                .iter()
-                .zip(&whole.rgba)
-                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-                .fold(0.0f32, f32::max);
+            let max = max_channel_diff(&over, &whole.rgba);
             errors.push(max);
         }
         assert!(

@@ -2,7 +2,7 @@
 mod common;
 use std::sync::Arc;
 
-use common::{cloud, slab, slab_scene};
+use common::{cloud, composite_under, max_channel_diff, slab, slab_scene};
 use fluidcast_render::{render_adaptive, render_reference, PlanParams, RenderParams};
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -246,18 +246,9 @@ fn depth_intervals_composited_in_order_equal_the_whole_ray() {
                 img.rgba.iter().any(|px| px[3] > 0.05),
                 "{name}: a region is empty"
             );
-            for (o, px) in over.iter_mut().zip(&img.rgba) {
-                let t = 1.0 - o[3];
-                for c in 0..4 {
-                    o[c] += t * px[c];
-                }
-            }
+            composite_under(&mut over, &img.rgba);
         }
-        let max = over
-            .iter()
-            .zip(&whole.rgba)
-            .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-            .fold(0.0f32, f32::max);
+        let max = max_channel_diff(&over, &whole.rgba);
         // Each strict region is within E_I = 0.004 of full rate, as the whole is.
         let tol = if *name == "adaptive strict" {
             0.013

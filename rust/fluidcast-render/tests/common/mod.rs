@@ -83,3 +83,22 @@ pub fn slab_scene() -> (Camera, TransferFunction, f64) {
     let sigma = -(1.0f64 - alpha).ln() / tf.unit_distance;
     (cam, tf, sigma)
 }
+
+/// Premultiplied `part` composited under what `over` holds (front to back): what ordered
+/// compositing of regions' images does.
+pub fn composite_under(over: &mut [[f32; 4]], part: &[[f32; 4]]) {
+    for (o, px) in over.iter_mut().zip(part) {
+        let t = 1.0 - o[3];
+        for c in 0..4 {
+            o[c] += t * px[c];
+        }
+    }
+}
+
+/// The largest difference of any channel of any pixel.
+pub fn max_channel_diff(a: &[[f32; 4]], b: &[[f32; 4]]) -> f32 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..4).map(move |c| (x[c] - y[c]).abs()))
+        .fold(0.0f32, f32::max)
+}
