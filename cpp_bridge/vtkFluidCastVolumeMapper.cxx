@@ -306,8 +306,10 @@ double* vtkFluidCastVolumeMapper::GetBounds()
       if (this->Cropping)
       {
         const double* c = this->CroppingRegionPlanes;
-        this->Bounds[2 * k] = std::max(this->Bounds[2 * k], c[2 * k]);
-        this->Bounds[2 * k + 1] = std::max(this->Bounds[2 * k], std::min(this->Bounds[2 * k + 1], c[2 * k + 1]));
+        double& lo = this->Bounds[2 * k];
+        double& hi = this->Bounds[2 * k + 1];
+        lo = std::max(lo, c[2 * k]);
+        hi = std::max(lo, std::min(hi, c[2 * k + 1]));
       }
     }
   }
@@ -490,14 +492,20 @@ int vtkFluidCastVolumeMapper::UpdateParticles()
 }
 
 //------------------------------------------------------------------------------
-int vtkFluidCastVolumeMapper::ComputeSupportDepthRange(vtkCamera* cam, double range[2])
+bool vtkFluidCastVolumeMapper::InputIsEmpty()
 {
   if (vtkAlgorithm* algo = this->GetInputAlgorithm())
   {
     algo->Update();
   }
   vtkDataSet* in = this->GetDataSetInput();
-  if (!cam || !in || in->GetNumberOfPoints() == 0)
+  return in && in->GetNumberOfPoints() == 0;
+}
+
+//------------------------------------------------------------------------------
+int vtkFluidCastVolumeMapper::ComputeSupportDepthRange(vtkCamera* cam, double range[2])
+{
+  if (!cam || this->InputIsEmpty())
   {
     return 0;
   }
@@ -543,20 +551,12 @@ void vtkFluidCastVolumeMapper::ClearSharedSupportDepthRange()
 void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
 {
   const auto start = std::chrono::steady_clock::now();
-  if (this->Cropping)
+  if (this->Cropping && this->InputIsEmpty())
   {
     // A region with no particles in or near it (an MPI rank's box) is empty, not an error.
-    if (vtkAlgorithm* algo = this->GetInputAlgorithm())
-    {
-      algo->Update();
-    }
-    vtkDataSet* in = this->GetDataSetInput();
-    if (in && in->GetNumberOfPoints() == 0)
-    {
-      this->LastError.clear();
-      this->LastSamples = 0;
-      return;
-    }
+    this->LastError.clear();
+    this->LastSamples = 0;
+    return;
   }
   vtkPointSet* input = this->UpdatedInput();
   if (!input || !this->Upload(input))

@@ -277,6 +277,8 @@ private:
   vtkFluidCastVolumeMapper(const vtkFluidCastVolumeMapper&) = delete;
   void operator=(const vtkFluidCastVolumeMapper&) = delete;
 
+  /** Updates the input algorithm; true when there is an input and it has no points. */
+  bool InputIsEmpty();
   /** Updates the input algorithm; the input if it is a vtkPointSet with points. */
   vtkPointSet* UpdatedInput();
   /** Hands the input to the Rust renderer when it or the settings changed (else the last

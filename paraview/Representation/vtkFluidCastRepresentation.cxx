@@ -1,9 +1,9 @@
 #include "vtkFluidCastRepresentation.h"
 
+#include "fluidcastDistribute.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkCommunicator.h"
-#include "fluidcastDistribute.h"
 #include "vtkDataObject.h"
 #include "vtkFluidCastVolumeMapper.h"
 #include "vtkInformation.h"
@@ -125,19 +125,16 @@ int vtkFluidCastRepresentation::ProcessViewRequest(
       this->ShareSupportDepths(vtkPVRenderView::SafeDownCast(this->GetView()));
       return 1;
     }
-    else
+    // One process, or every rank's piece gathered here: halo copies would count twice.
+    this->Mapper->SetCropping(0);
+    this->Mapper->ClearSharedSupportDepthRange();
+    if (data != this->GatheredFrom || (data && data->GetMTime() > this->GatheredTime))
     {
-      // One process, or every rank's piece gathered here: halo copies would count twice.
-      this->Mapper->SetCropping(0);
-      this->Mapper->ClearSharedSupportDepthRange();
-      if (data != this->GatheredFrom || (data && data->GetMTime() > this->GatheredTime))
-      {
-        this->Gathered = fluidcast_paraview::WithoutHalo(data);
-        this->GatheredFrom = data;
-        this->GatheredTime.Modified();
-      }
-      this->Mapper->SetInputData(this->Gathered);
+      this->Gathered = fluidcast_paraview::WithoutHalo(data);
+      this->GatheredFrom = data;
+      this->GatheredTime.Modified();
     }
+    this->Mapper->SetInputData(this->Gathered);
     this->UpdateMapperParameters();
   }
   return 1;
