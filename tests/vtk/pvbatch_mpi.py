@@ -32,8 +32,22 @@ VTK_TYPES = {"float32": "Float32", "float64": "Float64", "int32": "Int32", "int6
              "uint32": "UInt32", "uint64": "UInt64"}
 
 
+def missing_data(data):
+    """None when `data` exists, else the exit status: 1 with FLUIDCAST_REQUIRE_DATA=1, else 77
+    (skipped)."""
+    if os.path.exists(data):
+        return None
+    if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
+        print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {data} is missing")
+        return 1
+    print(f"SKIP: {data} not present")
+    return 77
+
+
 def split(data, out):
-    """DATA.vtu as OUT/pieces.pvtu with PIECES slabs along x; returns its path."""
+    """DATA.vtu as OUT/pieces.pvtu with PIECES slabs along x (OUT made if needed); returns its
+    path."""
+    os.makedirs(out, exist_ok=True)
     r = vtkXMLUnstructuredGridReader()
     r.SetFileName(data)
     r.Update()
@@ -91,13 +105,9 @@ def main():
     mpiexec, pvbatch, plugin, data, array, out, tolerance = sys.argv[1:8]
     radius = sys.argv[8:10]
     tolerance = float(tolerance)
-    if not os.path.exists(data):
-        if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
-            print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {data} is missing")
-            return 1
-        print(f"SKIP: {data} not present")
-        return 77
-    os.makedirs(out, exist_ok=True)
+    missing = missing_data(data)
+    if missing is not None:
+        return missing
     pvtu = split(data, out)
     runs = {}
     for n in (1, 2, 3):

@@ -24,7 +24,7 @@ from paraview.simple import Connect, Disconnect, LoadPlugin
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from mpi_views import VIEWS, render_views  # noqa: E402
-from pvbatch_mpi import read, split  # noqa: E402
+from pvbatch_mpi import missing_data, read, split  # noqa: E402
 
 
 def free_port():
@@ -58,13 +58,9 @@ def start_server(mpiexec, pvserver, port):
 
 def main():
     mpiexec, pvserver, plugin, data, array, out = sys.argv[1:7]
-    if not os.path.exists(data):
-        if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
-            print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {data} is missing")
-            return 1
-        print(f"SKIP: {data} not present")
-        return 77
-    os.makedirs(out, exist_ok=True)
+    missing = missing_data(data)
+    if missing is not None:
+        return missing
     pvtu = split(data, out)
     LoadPlugin(plugin, remote=False, ns=globals())
     print("built-in:", render_views(pvtu, array, os.path.join(out, "builtin"), 0))

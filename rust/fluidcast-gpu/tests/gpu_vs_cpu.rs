@@ -230,17 +230,20 @@ fn gpu_matches_cpu_on_the_shared_datasets() {
     }
 }
 
-#[test]
-fn gpu_matches_cpu_with_opaque_geometry() {
-    let Some(g) = gpu() else { return };
-    let p = cloud(4000, 5);
-    let tf = cloud_tf();
-    let cam = Camera {
+/// The cloud from (0.3, 0.4, 2.2), close enough that planes of view depth cut through it.
+fn near_camera() -> Camera {
+    Camera {
         position: [0.3, 0.4, 2.2],
         focal_point: [0.0; 3],
         view_up: [0.0, 1.0, 0.0],
         ..Default::default()
-    };
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_with_opaque_geometry() {
+    let Some(g) = gpu() else { return };
+    let (p, tf, cam) = (cloud(4000, 5), cloud_tf(), near_camera());
     let (w, h) = (96u32, 72u32);
     // A tilted plane through the cloud, and a corner with nothing opaque.
     let limit: Vec<f32> = (0..h)
@@ -275,14 +278,7 @@ fn gpu_matches_cpu_with_opaque_geometry() {
 #[test]
 fn gpu_matches_cpu_cropped_to_a_depth_interval() {
     let Some(g) = gpu() else { return };
-    let p = cloud(4000, 5);
-    let tf = cloud_tf();
-    let cam = Camera {
-        position: [0.3, 0.4, 2.2],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        ..Default::default()
-    };
+    let (p, tf, cam) = (cloud(4000, 5), cloud_tf(), near_camera());
     let (w, h) = (96u32, 72u32);
     let plane = |z0: f32, dz: f32| -> std::sync::Arc<[f32]> {
         (0..h)

@@ -40,6 +40,21 @@ fn kd_boxes(cam: &Camera, cx: f64, cy: f64) -> Vec<Box3> {
     }
 }
 
+/// 48×40 pixels at full rate, no early ray termination (a region behind cannot know how
+/// opaque the ones in front are).
+fn full_rate() -> RenderParams {
+    RenderParams {
+        width: 48,
+        height: 40,
+        min_transmittance: 0.0,
+        adaptive: PlanParams {
+            tolerance: None,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
 fn render(
     p: &Particles,
     cam: &Camera,
@@ -59,16 +74,7 @@ fn boxes_that_partition_space_composite_to_the_whole_image() {
     let p = cloud(2500, 11);
     for (azimuth, elevation, parallel) in [(30.0, 20.0, false), (-120.0, -35.0, true)] {
         let (cam, tf) = cloud_view(azimuth, elevation, parallel, FieldKind::Csph);
-        let base = RenderParams {
-            width: 48,
-            height: 40,
-            min_transmittance: 0.0,
-            adaptive: PlanParams {
-                tolerance: None,
-                ..Default::default()
-            },
-            ..Default::default()
-        };
+        let base = full_rate();
         for adaptive in [false, true] {
             let whole = render(&p, &cam, &tf, &base, adaptive);
             let mut over = vec![[0.0f32; 4]; whole.rgba.len()];
@@ -126,16 +132,7 @@ fn parts_with_halos_and_the_wholes_support_depths_composite_to_the_whole_image()
     let p = fluidcast_testkit::cloud(6000, 11, (0.06, 0.02));
     let halo = 2.0 * p.radii.iter().copied().fold(0.0f32, f32::max);
     let (cam, tf) = cloud_view(30.0, 20.0, false, FieldKind::Csph);
-    let base = RenderParams {
-        width: 48,
-        height: 40,
-        min_transmittance: 0.0,
-        adaptive: PlanParams {
-            tolerance: None,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
+    let base = full_rate();
     let frame = cam.frame(base.width, base.height).unwrap();
     let whole_depths = support_depth_extent(&p, &frame).unwrap();
     for adaptive in [false, true] {

@@ -68,9 +68,8 @@ fn slab_cut_by_a_plane_has_the_closed_form_transmittance() {
     }
 }
 
-#[test]
-fn per_pixel_limit_off_equals_reference_and_infinity_changes_nothing() {
-    let p = cloud(3000, 5);
+/// 3000 particles of [`cloud`] seen from (0.3, 0.4, 2.2), Viridis over -0.5..1.
+fn cloud_scene() -> (fluidcast_sph::Particles, Camera, TransferFunction) {
     let cam = Camera {
         position: [0.3, 0.4, 2.2],
         focal_point: [0.0; 3],
@@ -82,6 +81,12 @@ fn per_pixel_limit_off_equals_reference_and_infinity_changes_nothing() {
         .with_range(-0.5, 1.0)
         .unwrap();
     tf.unit_distance = 0.2;
+    (cloud(3000, 5), cam, tf)
+}
+
+#[test]
+fn per_pixel_limit_off_equals_reference_and_infinity_changes_nothing() {
+    let (p, cam, tf) = cloud_scene();
     let (w, h) = (64u32, 48u32);
     // A tilted plane cutting through the cloud (view depths 1.8 .. 2.6) and a hole with no
     // geometry.
@@ -197,18 +202,7 @@ fn bundle_stops_are_the_nearest_limit_of_each_bundles_pixels() {
 /// ranks owning boxes of space rely on.
 #[test]
 fn depth_intervals_composited_in_order_equal_the_whole_ray() {
-    let p = cloud(3000, 5);
-    let cam = Camera {
-        position: [0.3, 0.4, 2.2],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        ..Default::default()
-    };
-    let mut tf = TransferFunction::preset("viridis")
-        .unwrap()
-        .with_range(-0.5, 1.0)
-        .unwrap();
-    tf.unit_distance = 0.2;
+    let (p, cam, tf) = cloud_scene();
     let (w, h) = (40u32, 30u32);
     let plane = |z0: f32, dz: f32| -> Arc<[f32]> {
         (0..h)
