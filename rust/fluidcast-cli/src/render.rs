@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
 use fluidcast_io::Input;
 use fluidcast_render::{render_reference, RenderParams, RenderStats};
-use fluidcast_sph::Particles;
+use fluidcast_sph::{ParticleSpec, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
@@ -42,6 +42,11 @@ pub struct RenderArgs {
     /// Write timings and counts as JSON here (for a series: one object per frame in a list).
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// For a series: read each frame only after the previous one is written. By default the
+    /// next frame is read and turned into particles on a second thread while the current one
+    /// renders (two frames in memory at once).
+    #[arg(long)]
+    no_prefetch: bool,
     /// With PNG output and an error tolerance, also write NAME.plan.png (per bundle: grey =
     /// cells at full rate, green = adapted in depth, yellow = super-pixels, as in the paper's
     /// Fig. 3) and NAME.error.png (predicted error bound / E_I, white = E_I or more). EXR
@@ -268,6 +273,89 @@ pub fn print_notes(notes: &[String]) {
     }
 }
 
+/// One frame read and turned into particles, and how long each took (milliseconds).
+struct Loaded {
+    index: usize,
+    particles: Particles,
+    read_ms: f64,
+    prep_ms: f64,
+}
+
+fn load(input: &Input, file: &Path, spec: &ParticleSpec, index: usize) -> Result<Loaded> {
+    let t_read = Instant::now();
+    let ds = input.read(file)?;
+    let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
+    let t_prep = Instant::now();
+    let particles = Particles::from_dataset(&ds, spec)?;
+    if particles.skipped_nonfinite > 0 {
+        eprintln!(
+            "warning: {}: skipped {} particles with NaN/Inf coordinates",
+            file.display(),
+            particles.skipped_nonfinite
+        );
+    }
+    Ok(Loaded {
+        index,
+        particles,
+        read_ms,
+        prep_ms: t_prep.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// Hands the `frames` of `all` to `render` in order. With `prefetch` a second thread loads
+/// the next frame while `render` works on the current one (a rendezvous channel: at most two
+/// frames in memory); the first error, of either, ends the loop and is returned.
+fn for_each_frame(
+    input: &Input,
+    all: &[(Option<f64>, PathBuf)],
+    frames: &[usize],
+    spec: &ParticleSpec,
+    prefetch: bool,
+    mut render: impl FnMut(Loaded) -> Result<()>,
+) -> Result<()> {
+    if !prefetch || frames.len() < 2 {
+        for &fi in frames {
+            render(load(input, &all[fi].1, spec, fi)?)?;
+        }
+        return Ok(());
+    }
+    std::thread::scope(|scope| {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Loaded>>(0);
+        scope.spawn(move || {
+            for &fi in frames {
+                let loaded = load(input, &all[fi].1, spec, fi);
+                let failed = loaded.is_err();
+                // A closed channel: the renderer stopped (an error); stop reading.
+                if tx.send(loaded).is_err() || failed {
+                    break;
+                }
+            }
+        });
+        for loaded in rx {
+            render(loaded?)?;
+        }
+        Ok(())
+    })
+}
+
+/// One line per written frame when there is no progress bar.
+fn report_frame(out: &Path, stats: &RenderStats) {
+    // `total` already covers the renderer's own stages (bin, raycast).
+    let total: f64 = stats
+        .stages
+        .iter()
+        .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "raycast"))
+        .map(|(_, v)| v)
+        .sum();
+    eprintln!(
+        "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms",
+        out.display(),
+        stats.depth_samples,
+        stats.samples,
+        total
+    );
+}
+
 pub fn run(a: RenderArgs) -> Result<()> {
     let background = parse_background(&a.background)?;
     let png_encoding = if a.srgb {
@@ -312,20 +400,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let renderer = open_backend(&a.sampling)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
-    for &fi in &frames {
-        let t_read = Instant::now();
+    let started = Instant::now();
+    let prefetch = !a.no_prefetch;
+    for_each_frame(&input, &all, &frames, &spec, prefetch, |frame| {
+        let Loaded {
+            index: fi,
+            particles,
+            read_ms,
+            prep_ms,
+        } = frame;
         let (time, file) = &all[fi];
-        let ds = input.read(file)?;
-        let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
-        let t_prep = Instant::now();
-        let particles = Particles::from_dataset(&ds, &spec)?;
-        if particles.skipped_nonfinite > 0 {
-            eprintln!(
-                "warning: {}: skipped {} particles with NaN/Inf coordinates",
-                file.display(),
-                particles.skipped_nonfinite
-            );
-        }
         // Camera, range and opacity unit are fixed from the first frame for a whole series.
         let cam = match &camera {
             Some(c) => c,
@@ -338,7 +422,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 camera.insert(cam)
             }
         };
-        let prep_ms = t_prep.elapsed().as_secs_f64() * 1e3;
         let (image, mut stats) = render_frame(
             &particles,
             None,
@@ -369,23 +452,22 @@ pub fn run(a: RenderArgs) -> Result<()> {
         all_stats.push(stats_json(&stats, file, *time));
         match &progress {
             Some(pb) => pb.inc(1),
-            None => {
-                // `total` already covers the renderer's own stages (bin, raycast).
-                let total: f64 = stats
-                    .stages
-                    .iter()
-                    .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "raycast"))
-                    .map(|(_, v)| v)
-                    .sum();
-                eprintln!(
-                    "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms",
-                    out.display(),
-                    stats.depth_samples,
-                    stats.samples,
-                    total
-                );
-            }
+            None => report_frame(&out, &stats),
         }
+        Ok(())
+    })?;
+    if frames.len() > 1 {
+        let s = started.elapsed().as_secs_f64();
+        eprintln!(
+            "{} frames in {s:.2} s: {:.2} frames/s ({})",
+            frames.len(),
+            frames.len() as f64 / s,
+            if prefetch {
+                "each frame read while the one before rendered"
+            } else {
+                "frames read in turn, --no-prefetch"
+            }
+        );
     }
     if let Some(pb) = progress {
         pb.finish_with_message("done");

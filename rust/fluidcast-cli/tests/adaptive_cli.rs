@@ -315,4 +315,46 @@ fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     assert_eq!(compare(&p("f_001.exr"), &p("b_fixed.exr")), (0.0, 0.0));
     assert!(compare(&p("f_001.exr"), &p("f_000.exr")).0 > 0.1);
     assert!(compare(&p("f_001.exr"), &p("b_auto.exr")).0 > 0.1);
+    // Read in turn instead of one frame ahead: the same frames.
+    render("s.pvd", "g_%03d.exr", &["--frames", "0:2", "--no-prefetch"]);
+    for k in ["000", "001"] {
+        let (f, g) = (p(&format!("f_{k}.exr")), p(&format!("g_{k}.exr")));
+        assert_eq!(compare(&f, &g), (0.0, 0.0), "frame {k}");
+    }
+}
+
+/// A damaged frame in the middle of a series, read one frame ahead: the frames before it are
+/// written, the error names the file, and nothing after it is rendered.
+#[test]
+fn a_damaged_frame_stops_a_prefetched_series_with_its_name() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    std::fs::write(p("a.vtu"), lattice_vtu([0.0; 3], 1.0)).unwrap();
+    std::fs::write(p("b.vtu"), b"<VTKFile type=\"UnstructuredGrid\"><Unstruct").unwrap();
+    std::fs::write(p("c.vtu"), lattice_vtu([0.1; 3], 2.0)).unwrap();
+    std::fs::write(
+        p("s.pvd"),
+        r#"<?xml version="1.0"?><VTKFile type="Collection" version="0.1"><Collection>
+<DataSet timestep="0" file="a.vtu"/><DataSet timestep="1" file="b.vtu"/>
+<DataSet timestep="2" file="c.vtu"/></Collection></VTKFile>"#,
+    )
+    .unwrap();
+    let (i, o) = (p("s.pvd"), p("f_%03d.png"));
+    let args = [
+        "render",
+        i.to_str().unwrap(),
+        "-o",
+        o.to_str().unwrap(),
+        "--array",
+        "value",
+        "--size",
+        "20x15",
+        "--support-radius",
+        "0.2",
+    ];
+    let (ok, _, err) = run(&args);
+    assert!(!ok);
+    assert!(err.contains("b.vtu"), "{err}");
+    assert!(p("f_000.png").exists());
+    assert!(!p("f_001.png").exists() && !p("f_002.png").exists());
 }
