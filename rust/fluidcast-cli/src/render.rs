@@ -356,22 +356,14 @@ fn report_frame(out: &Path, stats: &RenderStats) {
     );
 }
 
-pub fn run(a: RenderArgs) -> Result<()> {
-    let background = parse_background(&a.background)?;
-    let png_encoding = if a.srgb {
-        fluidcast_image::PngEncoding::Srgb
-    } else {
-        fluidcast_image::PngEncoding::Vtk
-    };
-    let input = Input::open(&a.input)?;
-    let all = input.frames();
-    let frames: Vec<usize> = match (&a.frames, &input) {
-        (Some(f), _) => parse_frames(f, all.len())?,
-        (None, Input::Series(_)) if a.output.to_string_lossy().contains('%') => {
-            (0..all.len()).collect()
-        }
+/// The frames to render: `--frames`, else all of a series when the output is a pattern, else
+/// the first; several frames need an output pattern.
+fn select_frames(a: &RenderArgs, input: &Input, n: usize) -> Result<Vec<usize>> {
+    let frames: Vec<usize> = match (&a.frames, input) {
+        (Some(f), _) => parse_frames(f, n)?,
+        (None, Input::Series(_)) if a.output.to_string_lossy().contains('%') => (0..n).collect(),
         (None, Input::Series(_)) => {
-            eprintln!("note: {} has {} frames; rendering the first (use --frames and an out_%04d.png pattern for more)", a.input.display(), all.len());
+            eprintln!("note: {} has {} frames; rendering the first (use --frames and an out_%04d.png pattern for more)", a.input.display(), n);
             vec![0]
         }
         (None, Input::File(_)) => vec![0],
@@ -382,21 +374,36 @@ pub fn run(a: RenderArgs) -> Result<()> {
             frames.len()
         );
     }
+    Ok(frames)
+}
+
+fn progress_bar(frames: usize) -> ProgressBar {
+    let pb = ProgressBar::new(frames as u64);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let background = parse_background(&a.background)?;
+    let png_encoding = if a.srgb {
+        fluidcast_image::PngEncoding::Srgb
+    } else {
+        fluidcast_image::PngEncoding::Vtk
+    };
+    let input = Input::open(&a.input)?;
+    let all = input.frames();
+    let frames = select_frames(&a, &input, all.len())?;
     let spec = a.particles.spec()?;
     let params = a.sampling.params(&a.view, &a.particles)?;
     let base_tf = a.view.base_tf()?;
     let mut tf = base_tf.clone();
 
-    let progress = (frames.len() > 1).then(|| {
-        let pb = ProgressBar::new(frames.len() as u64);
-        pb.set_style(
-            ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        pb
-    });
+    let progress = (frames.len() > 1).then(|| progress_bar(frames.len()));
     let renderer = open_backend(&a.sampling)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
