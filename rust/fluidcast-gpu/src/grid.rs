@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use bytemuck::Zeroable;
-use fluidcast_grid::{depth_range, support_depth_range, SampleDepths};
+use fluidcast_grid::{sampled_range, support_depth_range, SampleDepths};
 use fluidcast_render::{ms, RenderError, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::ViewFrame;
@@ -153,11 +153,8 @@ impl Gpu {
         frame: &ViewFrame,
         params: &RenderParams,
     ) -> Result<Option<Vec<f32>>, GpuError> {
-        let range = match params.support_depths {
-            Some((zmin, zmax)) => depth_range(zmin, zmax, frame.parallel.is_none()),
-            None => support_depth_range(particles, frame),
-        };
-        let Some((near, far)) = range else {
+        let own = || support_depth_range(particles, frame);
+        let Some((near, far)) = sampled_range(frame, params.support_depths, own) else {
             return Ok(None);
         };
         let dz = params.grid.depth_samples;

@@ -107,6 +107,21 @@ pub fn support_depth_range(particles: &Particles, frame: &ViewFrame) -> Option<(
     depth_range(zmin, zmax, frame.parallel.is_none())
 }
 
+/// `[near, far]` the depth samples cover: over `support_depths` (`(zmin, zmax)` of a whole
+/// data set these particles are part of, as [`support_depth_extent`] finds them, clamped as
+/// [`depth_range`] clamps) when given, else `own()` (these particles' own range). One rule for
+/// the CPU grid, the reference renderer and the GPU grid, which must sample alike.
+pub fn sampled_range(
+    frame: &ViewFrame,
+    support_depths: Option<(f64, f64)>,
+    own: impl FnOnce() -> Option<(f64, f64)>,
+) -> Option<(f64, f64)> {
+    match support_depths {
+        Some((zmin, zmax)) => depth_range(zmin, zmax, frame.parallel.is_none()),
+        None => own(),
+    }
+}
+
 /// The smallest and largest view depth of any particle's support, `(zmin, zmax)` (the same f64
 /// arithmetic as [`view_particles`]), before [`depth_range`] clamps them; `None` without
 /// particles. Renderers that hold parts of one data set (MPI ranks) reduce these over all
@@ -498,9 +513,8 @@ impl PerspectiveGrid {
     ) -> Result<PerspectiveGrid, GridError> {
         params.validate()?;
         let mut vp = view_particles(particles, frame);
-        if let Some((zmin, zmax)) = support_depths {
-            vp.range = depth_range(zmin, zmax, frame.parallel.is_none());
-        }
+        let own = vp.range;
+        vp.range = sampled_range(frame, support_depths, || own);
         let d = params.bundle;
         let (bx, by) = (frame.width.div_ceil(d), frame.height.div_ceil(d));
         let nb = (bx * by) as usize;

@@ -41,9 +41,8 @@ impl RayView {
             ..Default::default()
         };
         let mut vp = view_particles(particles, &frame);
-        if let Some((zmin, zmax)) = params.support_depths {
-            vp.range = fluidcast_grid::depth_range(zmin, zmax, frame.parallel.is_none());
-        }
+        let own = vp.range;
+        vp.range = fluidcast_grid::sampled_range(&frame, params.support_depths, || own);
         let depths = match vp.range {
             Some((near, far)) => {
                 let d = SampleDepths::new(
