@@ -10,7 +10,6 @@ use fluidcast_render::{
     render_adaptive, render_object_space, render_reference, RenderStats, SURFACE_THRESHOLD,
 };
 use fluidcast_sph::Particles;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
@@ -143,13 +142,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let per_view = tols.len() * (1 + usize::from(gpu.is_some()))
         + usize::from(!a.no_reference)
         + usize::from(a.object_space);
-    let pb = ProgressBar::new((frames.len() * a.views * per_view) as u64);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} renders {msg}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let pb = crate::render::progress_bar(frames.len() * a.views * per_view, "renders");
     let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_memory = 0u64;

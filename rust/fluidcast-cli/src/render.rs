@@ -377,13 +377,13 @@ fn select_frames(a: &RenderArgs, input: &Input, n: usize) -> Result<Vec<usize>> 
     Ok(frames)
 }
 
-fn progress_bar(frames: usize) -> ProgressBar {
-    let pb = ProgressBar::new(frames as u64);
+/// A progress bar over `len` things counted as `unit` ("frames", "renders").
+pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len as u64);
+    let template =
+        format!("{{spinner}} [{{elapsed_precise}}] {{bar:40}} {{pos}}/{{len}} {unit} {{msg}}");
     pb.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} frames {msg}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(&template).unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     pb
 }
@@ -403,7 +403,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let base_tf = a.view.base_tf()?;
     let mut tf = base_tf.clone();
 
-    let progress = (frames.len() > 1).then(|| progress_bar(frames.len()));
+    let progress = (frames.len() > 1).then(|| progress_bar(frames.len(), "frames"));
     let renderer = open_backend(&a.sampling)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
