@@ -462,42 +462,61 @@ fn cell_bounds(
     // Bit s set: every ray of sub-bundle s is inside some particle's support at sample k.
     let full = parts.all;
     let mut cover = [0u64; 64];
-    let part_r2 = parts.r2_min;
     for &j in &grid.refs[cell.start as usize..cell.end as usize] {
         let p = &grid.particles[j as usize];
         let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
         if r.is_empty() {
             continue;
         }
-        let wmax = params.kernel.eval(0.0, p.h);
-        let (slo, shi) = match params.field {
-            FieldKind::Csph => (0.0, 0.0),
-            FieldKind::Sph => {
-                let s = p.a * p.v * wmax;
-                (s.min(0.0), s.max(0.0))
-            }
-            FieldKind::Density => (0.0, p.m * wmax),
-        };
-        for k in r {
+        for k in r.clone() {
             any[k] = true;
             qlo[k] = qlo[k].min(p.a);
             qhi[k] = qhi[k].max(p.a);
-            sum_lo[k] += slo;
-            sum_hi[k] += shi;
-            if cover[k] != full {
-                // The disc must at least reach over a sub-bundle's half diagonal.
-                let dzk = zs[k] - p.c[2];
-                let lim = p.h * p.h - dzk * dzk;
-                let scale = if bundle.parallel { 1.0 } else { zs[k] * zs[k] };
-                if lim <= part_r2 * scale {
-                    continue;
+        }
+        if params.field != FieldKind::Csph {
+            let wmax = params.kernel.eval(0.0, p.h);
+            let (slo, shi) = match params.field {
+                FieldKind::Sph => {
+                    let s = p.a * p.v * wmax;
+                    (s.min(0.0), s.max(0.0))
                 }
-                if bundle.covered_by(p, zs[k]) {
-                    cover[k] = full;
-                } else {
-                    cover[k] |= parts.covered(p, zs[k]);
-                }
+                _ => (0.0, p.m * wmax),
+            };
+            for k in r.clone() {
+                sum_lo[k] += slo;
+                sum_hi[k] += shi;
             }
+        }
+    }
+    // Bit k set while sample k, which some particle reaches, is not yet covered for every
+    // sub-bundle.
+    let mut open = (0..dz).fold(0u64, |m, k| m | (u64::from(any[k]) << k));
+    // Coverage, only at the samples still open. Particles near the bundle's middle ray
+    // cover most, so they go first and close samples early; OR-ing the bits in another
+    // order gives the same coverage.
+    let (mx, my) = (
+        0.5 * (bundle.x[0] + bundle.x[1]),
+        0.5 * (bundle.y[0] + bundle.y[1]),
+    );
+    let central = |p: &ViewParticle| {
+        let s = if bundle.parallel { 1.0 } else { p.c[2] };
+        let (dx, dy) = (mx * s - p.c[0], my * s - p.c[1]);
+        4.0 * (dx * dx + dy * dy) < p.h * p.h
+    };
+    for pass in [true, false] {
+        for &j in &grid.refs[cell.start as usize..cell.end as usize] {
+            if open == 0 {
+                break;
+            }
+            let p = &grid.particles[j as usize];
+            if central(p) != pass {
+                continue;
+            }
+            let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
+            if r.is_empty() {
+                continue;
+            }
+            cover_samples(bundle, parts, p, zs, r, &mut cover, &mut open);
         }
     }
     let tf = tfb.transfer_function();
@@ -545,6 +564,41 @@ fn cell_bounds(
         *o = acc;
     }
     (0..dz).any(|k| any[k] && cover[k] != full)
+}
+
+/// Coverage of `p` at the open samples of `r` (Sec. 4.2, see [`Parts`]): bits of the
+/// sub-bundles it covers OR-ed into `cover`; a sample covered for every sub-bundle is closed
+/// in `open`.
+fn cover_samples(
+    bundle: &Bundle,
+    parts: &Parts,
+    p: &ViewParticle,
+    zs: &[f64],
+    r: std::ops::Range<usize>,
+    cover: &mut [u64; 64],
+    open: &mut u64,
+) {
+    let in_range = (u64::MAX >> (64 - (r.end - r.start))) << r.start;
+    let mut todo = *open & in_range;
+    while todo != 0 {
+        let k = todo.trailing_zeros() as usize;
+        todo &= todo - 1;
+        // The disc must at least reach over a sub-bundle's half diagonal.
+        let dzk = zs[k] - p.c[2];
+        let lim = p.h * p.h - dzk * dzk;
+        let scale = if bundle.parallel { 1.0 } else { zs[k] * zs[k] };
+        if lim <= parts.r2_min * scale {
+            continue;
+        }
+        if bundle.covered_by(p, zs[k]) {
+            cover[k] = parts.all;
+        } else {
+            cover[k] |= parts.covered(p, zs[k]);
+        }
+        if cover[k] == parts.all {
+            *open &= !(1u64 << k);
+        }
+    }
 }
 
 #[derive(Clone, Copy, PartialEq)]
