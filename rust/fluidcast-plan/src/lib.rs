@@ -563,7 +563,8 @@ fn cell_bounds(
         }
         *o = acc;
     }
-    (0..dz).any(|k| any[k] && cover[k] != full)
+    // A sample left open is one that a particle reaches and some sub-bundle's rays may miss.
+    open != 0
 }
 
 /// Coverage of `p` at the open samples of `r` (Sec. 4.2, see [`Parts`]): bits of the
