@@ -238,6 +238,7 @@ fn check_frame(
     params: &RenderParams,
 ) -> Result<(), GpuError> {
     validate(params)?;
+    fluidcast_render::refuse_surfaces(params, "the GPU backend")?;
     check_supported(params, tf)?;
     params
         .adaptive

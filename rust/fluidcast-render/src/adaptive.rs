@@ -67,6 +67,7 @@ pub fn plan_adaptive(
 ) -> Result<AdaptivePlan, RenderError> {
     let t0 = Instant::now();
     validate(params)?;
+    crate::refuse_surfaces(params, "the adaptive grid renderer")?;
     let (w, h) = (params.width, params.height);
     let frame = camera.frame(w, h)?;
     let grid = PerspectiveGrid::build_within(

@@ -23,6 +23,7 @@ mod object_space;
 mod raycast;
 mod reference;
 mod span;
+mod surface;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -36,6 +37,7 @@ pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDept
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
 pub use reference::render_reference;
+pub use surface::{IsoField, SurfaceError, Surfaces};
 
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::CameraError;
@@ -82,6 +84,10 @@ pub struct RenderParams {
     /// one renderer of all the particles places them, so that the parts' images composite to
     /// the whole's. `None`: over these particles' own.
     pub support_depths: Option<(f64, f64)>,
+    /// Iso-surfaces to draw (shaded, in depth order with the volume when they ask for it);
+    /// `None`: the emission–absorption volume alone. Drawn by [`render_reference`]; the other
+    /// renderers refuse them ([`SurfaceError::Unsupported`]).
+    pub surfaces: Option<Arc<Surfaces>>,
 }
 
 impl RenderParams {
@@ -137,6 +143,7 @@ impl Default for RenderParams {
             depth_limit: None,
             depth_near: None,
             support_depths: None,
+            surfaces: None,
         }
     }
 }
@@ -162,6 +169,8 @@ pub enum RenderError {
     CropBox([f64; 3], [f64; 3]),
     #[error("{0} holds NaN or a negative depth")]
     DepthLimitValue(&'static str),
+    #[error("iso-surfaces: {0}")]
+    Surface(#[from] SurfaceError),
 }
 
 /// A rendered frame: the image and what it took. What every backend returns (the CPU renderers
@@ -207,6 +216,15 @@ impl RenderStats {
 /// Milliseconds since `t`.
 pub fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Refuses iso-surfaces in a renderer (`what`, e.g. "the adaptive grid renderer") that does
+/// not draw them yet.
+pub fn refuse_surfaces(params: &RenderParams, what: &'static str) -> Result<(), RenderError> {
+    match params.surfaces {
+        Some(_) => Err(SurfaceError::Unsupported(what).into()),
+        None => Ok(()),
+    }
 }
 
 /// Checks the image size and the parameters every renderer shares (the GPU path too).

@@ -28,6 +28,7 @@ pub fn render_object_space(
     params: &RenderParams,
 ) -> Result<(Image, RenderStats), RenderError> {
     let t0 = Instant::now();
+    crate::refuse_surfaces(params, "the object-space renderer")?;
     let (w, h) = (params.width, params.height);
     let RayView {
         frame,

@@ -1,3 +1,4 @@
+use std::ops::Range;
 use std::time::Instant;
 
 use fluidcast_grid::{screen_rect, view_particles, GridError, Ray, SampleDepths, ViewParticle};
@@ -7,12 +8,151 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
+use crate::surface::{IsoField, SurfaceCaster, SurfaceScratch};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 const TILE: u32 = 8;
 
-/// One tile's output: tile index, (premultiplied RGBA, depth) per pixel, samples taken.
-type TileResult = (u32, Vec<([f32; 4], f32)>, u64);
+/// One pixel's output: premultiplied RGBA, depth, and the world-space normal of its first
+/// iso-surface (zero where it has none, or without surfaces).
+#[derive(Debug, Clone, Copy)]
+struct Pixel {
+    rgba: [f32; 4],
+    depth: f32,
+    normal: [f32; 3],
+}
+
+/// One tile's output: tile index, its pixels row by row, samples taken.
+type TileResult = (u32, Vec<Pixel>, u64);
+
+/// What casting a tile's rays needs: the frame's parameters, sample depths and, with
+/// iso-surfaces, their caster and the iso attribute per particle.
+struct TileCaster<'a> {
+    params: &'a RenderParams,
+    frame: &'a ViewFrame,
+    tf: &'a TfLookup<'a>,
+    depths: &'a SampleDepths,
+    surfaces: Option<SurfaceCaster<'a>>,
+    iso_values: Option<&'a [f32]>,
+}
+
+impl<'a> TileCaster<'a> {
+    fn new(
+        params: &'a RenderParams,
+        frame: &'a ViewFrame,
+        tf: &'a TfLookup<'a>,
+        depths: &'a SampleDepths,
+        particles: &'a Particles,
+    ) -> Result<TileCaster<'a>, RenderError> {
+        let surfaces = params.surfaces.as_deref();
+        if let Some(s) = surfaces {
+            s.validate(particles.len())?;
+        }
+        let iso_values = match surfaces.map(|s| &s.field) {
+            Some(IsoField::Attribute(Some(v))) => Some(&v[..]),
+            _ => None,
+        };
+        Ok(TileCaster {
+            params,
+            frame,
+            tf,
+            depths,
+            surfaces: surfaces.map(|surfaces| SurfaceCaster {
+                surfaces,
+                params,
+                frame,
+                tf,
+                zs: &depths.z[..depths.len() + 1],
+            }),
+            iso_values,
+        })
+    }
+
+    /// Casts the rays of pixels `(columns, rows)` through the particles `list` (indices
+    /// into `vps`); returns the pixels row by row and the samples composited.
+    fn tile(
+        &self,
+        list: &[u32],
+        vps: &[ViewParticle],
+        (columns, rows): (Range<u32>, Range<u32>),
+    ) -> (Vec<Pixel>, u64) {
+        let n = self.depths.len();
+        let mut sums = Sums::new(n);
+        let mut out = Vec::with_capacity((TILE * TILE) as usize);
+        let mut samples = 0u64;
+        let Some(surfaces) = &self.surfaces else {
+            let local: Vec<ViewParticle> = list.iter().map(|&j| vps[j as usize]).collect();
+            for j in rows {
+                for i in columns.clone() {
+                    let comp = self.volume_ray(&local, &mut sums, i, j);
+                    samples += comp.samples;
+                    let (rgba, depth) = comp.pixel();
+                    out.push(Pixel {
+                        rgba,
+                        depth,
+                        normal: [0.0; 3],
+                    });
+                }
+            }
+            return (out, samples);
+        };
+        let local: Vec<(ViewParticle, f64)> = list
+            .iter()
+            .map(|&j| {
+                let p = vps[j as usize];
+                (p, self.iso_values.map_or(p.a, |v| v[j as usize] as f64))
+            })
+            .collect();
+        let mut scratch = SurfaceScratch::new(n);
+        for j in rows {
+            for i in columns.clone() {
+                let ray = Ray::through_pixel(self.frame, i, j);
+                let r = surfaces.cast(&ray, &local, &mut scratch, &mut sums, (i, j));
+                samples += r.comp.samples;
+                let (rgba, _) = r.comp.pixel(); // Z: the first surface, not the ½-opacity depth
+                out.push(match r.first {
+                    Some((depth, normal)) => Pixel {
+                        rgba,
+                        depth,
+                        normal,
+                    },
+                    None => Pixel {
+                        rgba,
+                        depth: f32::INFINITY,
+                        normal: [0.0; 3],
+                    },
+                });
+            }
+        }
+        (out, samples)
+    }
+
+    /// Pixel (i, j)'s emission–absorption ray: every particle of `local` scattered into its
+    /// samples, then composited front to back.
+    fn volume_ray(&self, local: &[ViewParticle], sums: &mut Sums, i: u32, j: u32) -> Compositor {
+        let (params, depths) = (self.params, self.depths);
+        let zs = &depths.z[..depths.len()];
+        let ray = Ray::through_pixel(self.frame, i, j);
+        let (lo, hi) = local
+            .iter()
+            .filter_map(|p| sums.scatter(&ray, p, zs, params.kernel))
+            .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
+        let mut comp = Compositor::for_pixel(params, i, j);
+        for k in lo..hi {
+            if let Some(q) = sums.value(k, params.field) {
+                let z = (depths.z[k], depths.z[k + 1]);
+                comp.sample(self.tf, q, z, ray.dlen, params.min_transmittance);
+                if comp.done {
+                    break;
+                }
+            }
+        }
+        if lo < hi {
+            sums.clear(lo..hi);
+        }
+        comp
+    }
+}
 
 /// What the renderers that cast every pixel's ray (reference, object space) start from: the
 /// checked parameters' view frame, stats and an empty image, the particles in view space and
@@ -128,44 +268,23 @@ pub fn render_reference(
 
     // Ray cast tile by tile.
     let t1 = Instant::now();
-    let zs = &depths.z[..depths.len()];
     let tf = &TfLookup::new(tf);
+    let caster = TileCaster::new(params, &frame, tf, &depths, particles)?;
     let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()
         .map(|(t, list)| {
             let (tx, ty) = (t as u32 % tiles_x, t as u32 / tiles_x);
-            let local: Vec<ViewParticle> = list.iter().map(|&j| vps[j as usize]).collect();
-            let mut sums = Sums::new(depths.len());
-            let mut out = Vec::with_capacity((TILE * TILE) as usize);
-            let mut samples = 0u64;
-            for j in ty * TILE..((ty + 1) * TILE).min(h) {
-                for i in tx * TILE..((tx + 1) * TILE).min(w) {
-                    let ray = Ray::through_pixel(&frame, i, j);
-                    let (lo, hi) = local
-                        .iter()
-                        .filter_map(|p| sums.scatter(&ray, p, zs, params.kernel))
-                        .fold((usize::MAX, 0), |(a, b), r| (a.min(r.start), b.max(r.end)));
-                    let mut comp = Compositor::for_pixel(params, i, j);
-                    for k in lo..hi {
-                        if let Some(q) = sums.value(k, params.field) {
-                            let z = (depths.z[k], depths.z[k + 1]);
-                            comp.sample(tf, q, z, ray.dlen, params.min_transmittance);
-                            if comp.done {
-                                break;
-                            }
-                        }
-                    }
-                    if lo < hi {
-                        sums.clear(lo..hi);
-                    }
-                    samples += comp.samples;
-                    out.push(comp.pixel());
-                }
-            }
+            let pixels = (
+                tx * TILE..((tx + 1) * TILE).min(w),
+                ty * TILE..((ty + 1) * TILE).min(h),
+            );
+            let (out, samples) = caster.tile(list, &vps, pixels);
             (t as u32, out, samples)
         })
         .collect();
+    let with_normals = params.surfaces.is_some();
+    let mut normals = vec![[0.0f32; 3]; if with_normals { image.rgba.len() } else { 0 }];
     for (t, px, n) in results {
         stats.samples += n;
         let (tx, ty) = (t % tiles_x, t / tiles_x);
@@ -173,10 +292,20 @@ pub fn render_reference(
         for j in ty * TILE..((ty + 1) * TILE).min(h) {
             for i in tx * TILE..((tx + 1) * TILE).min(w) {
                 let idx = image.index(i, j);
-                image.rgba[idx] = px[k].0;
-                image.depth[idx] = px[k].1;
+                image.rgba[idx] = px[k].rgba;
+                image.depth[idx] = px[k].depth;
+                if with_normals {
+                    normals[idx] = px[k].normal;
+                }
                 k += 1;
             }
+        }
+    }
+    if with_normals {
+        for (a, name) in ["normal_x", "normal_y", "normal_z"].into_iter().enumerate() {
+            image
+                .aovs
+                .push((name.into(), normals.iter().map(|n| n[a]).collect()));
         }
     }
     stats.stages.push(("raycast", ms(t1)));

@@ -160,6 +160,36 @@ impl Kernel {
         }
     }
 
+    /// `d shape / dq` at `q = r/H` (0 for `q ≥ 1`), so that the gradient of `W(|x − c|, H)`
+    /// with respect to `x` is `norm(H) · shape'(q) / H · (x − c)/|x − c|`: what analytic field
+    /// gradients (iso-surface normals, shading) are made of.
+    #[inline]
+    pub fn shape_slope(self, q: f64) -> f64 {
+        if !(0.0..1.0).contains(&q) {
+            return 0.0;
+        }
+        let t = 1.0 - q;
+        match self {
+            Kernel::CubicSpline if q <= 0.5 => 18.0 * q * q - 12.0 * q,
+            Kernel::CubicSpline => -6.0 * t * t,
+            Kernel::Quintic => {
+                let s = 3.0 * q;
+                let p4 = |x: f64| {
+                    let x = x.max(0.0);
+                    x * x * x * x
+                };
+                -15.0 * (p4(3.0 - s) - 6.0 * p4(2.0 - s) + 15.0 * p4(1.0 - s))
+            }
+            Kernel::WendlandC2 => -20.0 * q * t * t * t,
+            Kernel::WendlandC4 => -56.0 / 3.0 * q * t.powi(5) * (1.0 + 5.0 * q),
+            Kernel::Poly6 => {
+                let d = 1.0 - q * q;
+                -6.0 * q * d * d
+            }
+            Kernel::Gaussian => -9.0 * q * (-4.5 * q * q).exp(),
+        }
+    }
+
     /// `W` at single precision for the renderer's inner loops.
     #[inline]
     pub fn eval_f32(self, r: f32, h: f32) -> f32 {
@@ -234,6 +264,29 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// The slope against central differences of the shape, inside the support (where every
+    /// kernel is smooth but at the cubic's and quintic's joins, which are C² so the
+    /// difference still converges) and 0 beyond it.
+    #[test]
+    fn shape_slope_is_the_derivative_of_the_shape() {
+        for k in Kernel::ALL {
+            let e = 1e-6;
+            for i in 1..1000 {
+                let q = i as f64 / 1000.0;
+                let (lo, hi) = ((q - e).max(0.0), (q + e).min(1.0 - 1e-15));
+                let fd = (k.shape(hi) - k.shape(lo)) / (hi - lo);
+                let got = k.shape_slope(q);
+                assert!(
+                    (got - fd).abs() <= 1e-5 * fd.abs().max(1.0),
+                    "{k} q {q}: {got} vs {fd}"
+                );
+            }
+            assert_eq!(k.shape_slope(1.0), 0.0);
+            assert_eq!(k.shape_slope(2.5), 0.0);
+            assert_eq!(k.shape_slope(0.0), 0.0, "{k}: a smooth peak at the centre");
         }
     }
 

@@ -1,8 +1,11 @@
-//! Cameras in vtkCamera terms and transfer functions in ParaView preset terms.
+//! Cameras in vtkCamera terms, transfer functions in ParaView preset terms, and lighting in
+//! vtkVolumeProperty's.
 
 mod camera;
+mod light;
 mod presets_data;
 mod transfer;
 
 pub use camera::{Camera, CameraError, ViewFrame};
+pub use light::{Light, Lighting, LightingError};
 pub use transfer::{TfLookup, TransferFunction, TransferFunctionError};

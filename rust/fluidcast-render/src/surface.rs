@@ -1,0 +1,500 @@
+//! Iso-surfaces of the reconstructed field, found exactly along each ray, shaded with analytic
+//! gradients and composited in depth order with the volume (Fraedrich et al. 2010, Sec. 5;
+//! the level set of the SPH sum itself, not of a resampled grid).
+//!
+//! Per ray, the particles whose support the ray passes are kept with their passage
+//! ([`Pass`]). The iso field is summed at the ray's depth samples (the same depths the volume
+//! uses); where consecutive samples lie on either side of an iso value, the crossing between
+//! them is refined on the exact kernel sum along the ray (Illinois regula falsi, to 1e-9 of
+//! the step), and the surface normal there is the analytic gradient
+//! `∇f = Σ w_j shape'(q) / H_j · (x − c_j)/|x − c_j|` (with the quotient rule for CSPH), so
+//! neither the depth nor the shading shows the sampling.
+
+use std::ops::Range;
+use std::sync::Arc;
+
+use fluidcast_grid::{within, Ray, ViewParticle};
+use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_view::{Lighting, LightingError, TfLookup, ViewFrame};
+
+use crate::raycast::{Compositor, Sums};
+use crate::RenderParams;
+
+/// The reconstructed field whose level sets are drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub enum IsoField {
+    /// The colour field `Σ V_j W_j` (V = m/ρ): about 1 inside the fluid, falling to 0 across
+    /// one support radius at a free surface, so its 0.5 level is the usual SPH free surface.
+    Colour,
+    /// The density `Σ m_j W_j` (mass / world unit³).
+    Density,
+    /// The Shepard-normalised (CSPH) sum of a per-particle attribute: these values, one per
+    /// particle in the particles' order, or the rendered values (`None`).
+    Attribute(Option<Arc<[f32]>>),
+}
+
+impl IsoField {
+    /// The command-line name of the field (`ARRAY` stands for an attribute).
+    pub fn name(&self) -> &'static str {
+        match self {
+            IsoField::Colour => "colour",
+            IsoField::Density => "density",
+            IsoField::Attribute(_) => "attribute",
+        }
+    }
+}
+
+/// Iso-surfaces to draw, and how: what [`RenderParams::surfaces`] holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Surfaces {
+    pub field: IsoField,
+    /// The iso values (in the field's units), at least one.
+    pub values: Vec<f64>,
+    /// Opacity of every surface, in (0, 1]: 1 hides what lies behind the first surface.
+    pub opacity: f64,
+    /// A solid linear RGB colour (0..1); `None`: the transfer function's colour of the
+    /// rendered field at the surface point (the field as [`RenderParams::field`] says).
+    pub colour: Option<[f64; 3]>,
+    pub lighting: Lighting,
+    /// Also composite the emission–absorption volume of the rendered field, in depth order
+    /// with the surfaces (a step that a surface cuts is split there); `false`: surfaces only.
+    pub volume: bool,
+}
+
+impl Default for Surfaces {
+    fn default() -> Self {
+        Surfaces {
+            field: IsoField::Colour,
+            values: vec![0.5],
+            opacity: 1.0,
+            colour: None,
+            lighting: Lighting::default(),
+            volume: false,
+        }
+    }
+}
+
+/// Why iso-surface parameters were refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SurfaceError {
+    #[error("no iso value given")]
+    NoValues,
+    #[error("iso value {0} is not finite")]
+    Value(f64),
+    #[error("surface opacity {0} must be in (0, 1]")]
+    Opacity(f64),
+    #[error("surface colour {0:?} must be three numbers in 0..1")]
+    Colour([f64; 3]),
+    #[error(transparent)]
+    Lighting(#[from] LightingError),
+    #[error("the iso attribute has {0} values for {1} particles")]
+    AttributeLength(usize, usize),
+    #[error("{0} does not draw iso-surfaces yet; render them with the reference renderer (CLI: --mode reference, which --iso chooses by default)")]
+    Unsupported(&'static str),
+}
+
+impl Surfaces {
+    /// Checks the parameters against `particles` particles.
+    pub fn validate(&self, particles: usize) -> Result<(), SurfaceError> {
+        if self.values.is_empty() {
+            return Err(SurfaceError::NoValues);
+        }
+        if let Some(v) = self.values.iter().find(|v| !v.is_finite()) {
+            return Err(SurfaceError::Value(*v));
+        }
+        if !(self.opacity > 0.0 && self.opacity <= 1.0) {
+            return Err(SurfaceError::Opacity(self.opacity));
+        }
+        if let Some(c) = self.colour {
+            if !c.iter().all(|x| (0.0..=1.0).contains(x)) {
+                return Err(SurfaceError::Colour(c));
+            }
+        }
+        self.lighting.validate()?;
+        if let IsoField::Attribute(Some(v)) = &self.field {
+            if v.len() != particles {
+                return Err(SurfaceError::AttributeLength(v.len(), particles));
+            }
+        }
+        Ok(())
+    }
+
+    /// Which of a [`Point`]'s sums is the iso field's numerator (1, 2 or 3), and whether it
+    /// is divided by the Shepard sum.
+    fn sum_index(&self) -> (usize, bool) {
+        match self.field {
+            IsoField::Colour => (SHEPARD, false),
+            IsoField::Density => (DENSITY, false),
+            IsoField::Attribute(_) => (ISO, true),
+        }
+    }
+}
+
+/// Indices of a pass's weights and a point's sums: `norm(H) ·` V·A (the rendered attribute),
+/// V (Shepard / colour), m (density), V·B (the iso attribute).
+const RENDERED: usize = 0;
+const SHEPARD: usize = 1;
+const DENSITY: usize = 2;
+const ISO: usize = 3;
+
+/// One particle's passage through a ray: what evaluating the field exactly along it takes.
+#[derive(Debug, Clone)]
+struct Pass {
+    /// Centre in view space.
+    c: [f64; 3],
+    /// Depth of closest approach and the squared distance there.
+    t: f64,
+    r2: f64,
+    inv_h: f64,
+    /// The ray's depth samples inside the support.
+    k: Range<usize>,
+    w: [f64; 4],
+}
+
+/// The four sums at one point of a ray and their view-space gradients.
+#[derive(Debug, Clone, Copy, Default)]
+struct Point {
+    s: [f64; 4],
+    g: [[f64; 3]; 4],
+}
+
+impl Point {
+    /// The field `(numerator index, normalised)` at this point, `None` for a CSPH quotient
+    /// where no particle reaches.
+    fn value(&self, (n, norm): (usize, bool)) -> Option<f64> {
+        if !norm {
+            Some(self.s[n])
+        } else if self.s[SHEPARD] > 0.0 {
+            Some(self.s[n] / self.s[SHEPARD])
+        } else {
+            None
+        }
+    }
+
+    /// The gradient of that field (quotient rule for CSPH), view space.
+    fn gradient(&self, (n, norm): (usize, bool)) -> [f64; 3] {
+        let (a, ga) = (self.s[n], self.g[n]);
+        if !norm {
+            return ga;
+        }
+        let (s, gs) = (self.s[SHEPARD], self.g[SHEPARD]);
+        if s <= 0.0 {
+            return [0.0; 3];
+        }
+        [0, 1, 2].map(|i| (ga[i] * s - a * gs[i]) / (s * s))
+    }
+
+    /// The rendered field, as the volume renderer reconstructs it.
+    fn rendered(&self, field: FieldKind) -> Option<f64> {
+        match field {
+            FieldKind::Csph => self.value((RENDERED, true)),
+            FieldKind::Sph => Some(self.s[RENDERED]),
+            FieldKind::Density => Some(self.s[DENSITY]),
+        }
+    }
+}
+
+/// Per-tile scratch of the surface caster: the ray's passes and the iso field's sums at the
+/// depth samples (numerator, Shepard), zero outside the last ray's touched range.
+pub(crate) struct SurfaceScratch {
+    passes: Vec<Pass>,
+    num: Vec<f64>,
+    den: Vec<f64>,
+}
+
+impl SurfaceScratch {
+    pub fn new(samples: usize) -> SurfaceScratch {
+        SurfaceScratch {
+            passes: Vec::new(),
+            num: vec![0.0; samples],
+            den: vec![0.0; samples],
+        }
+    }
+}
+
+/// What one ray of the surface caster gives: its compositing state and, where it met a
+/// surface in its composited range, the first one's view depth and world-space unit normal
+/// (facing the eye).
+pub(crate) struct SurfaceRay {
+    pub comp: Compositor,
+    pub first: Option<(f32, [f32; 3])>,
+}
+
+/// The fixed inputs of one frame's surface casting.
+pub(crate) struct SurfaceCaster<'a> {
+    pub surfaces: &'a Surfaces,
+    pub params: &'a RenderParams,
+    pub frame: &'a ViewFrame,
+    pub tf: &'a TfLookup<'a>,
+    /// Sample depths: `zs.len()` samples, `zs[k + 1]` the end of step k (one more entry).
+    pub zs: &'a [f64],
+}
+
+impl SurfaceCaster<'_> {
+    /// Casts pixel (i, j)'s ray through `local` (the particles that may reach it, each with
+    /// its iso attribute value `b`), with `sums` for the volume.
+    pub fn cast(
+        &self,
+        ray: &Ray,
+        local: &[(ViewParticle, f64)],
+        scratch: &mut SurfaceScratch,
+        sums: &mut Sums,
+        (i, j): (u32, u32),
+    ) -> SurfaceRay {
+        let n = self.zs.len() - 1;
+        let samples = &self.zs[..n];
+        let kernel = self.params.kernel;
+        let pick = self.surfaces.sum_index();
+        scratch.passes.clear();
+        let (mut lo, mut hi) = (usize::MAX, 0);
+        for (p, b) in local {
+            let Some(pass) = ray.passage(p) else { continue };
+            let k = within(samples, pass.z0, pass.z1);
+            if self.surfaces.volume {
+                sums.scatter(ray, p, samples, kernel);
+            }
+            if !k.is_empty() {
+                (lo, hi) = (lo.min(k.start), hi.max(k.end));
+            }
+            let norm = kernel.norm(p.h);
+            scratch.passes.push(Pass {
+                c: p.c,
+                t: pass.t,
+                r2: pass.r2,
+                inv_h: 1.0 / p.h,
+                k,
+                w: [p.v * p.a, p.v, p.m, p.v * b].map(|x| x * norm),
+            });
+        }
+        let mut out = SurfaceRay {
+            comp: Compositor::for_pixel(self.params, i, j),
+            first: None,
+        };
+        if lo >= hi {
+            return out;
+        }
+        scatter_iso(scratch, ray, samples, kernel, pick.0);
+        let walk = Walk {
+            caster: self,
+            ray,
+            passes: &scratch.passes,
+            num: &scratch.num,
+            den: &scratch.den,
+            pick,
+        };
+        walk.run(lo.saturating_sub(1)..(hi + 1).min(n), sums, &mut out);
+        scratch.num[lo..hi].fill(0.0);
+        scratch.den[lo..hi].fill(0.0);
+        if self.surfaces.volume {
+            sums.clear(lo..hi);
+        }
+        out
+    }
+}
+
+/// Adds every pass's iso numerator and Shepard weights at its samples.
+fn scatter_iso(s: &mut SurfaceScratch, ray: &Ray, zs: &[f64], kernel: Kernel, n: usize) {
+    for p in &s.passes {
+        for k in p.k.clone() {
+            let dz = zs[k] - p.t;
+            let w = kernel.shape((p.r2 + ray.dd * dz * dz).sqrt() * p.inv_h);
+            s.num[k] += p.w[n] * w;
+            s.den[k] += p.w[SHEPARD] * w;
+        }
+    }
+}
+
+/// One ray's walk over its samples: finds, refines, shades and composites the crossings,
+/// and the volume between them.
+struct Walk<'a> {
+    caster: &'a SurfaceCaster<'a>,
+    ray: &'a Ray,
+    passes: &'a [Pass],
+    num: &'a [f64],
+    den: &'a [f64],
+    pick: (usize, bool),
+}
+
+impl Walk<'_> {
+    /// The iso field at sample k (`None`: an undefined CSPH quotient).
+    fn at(&self, k: usize) -> Option<f64> {
+        if !self.pick.1 {
+            Some(self.num[k])
+        } else if self.den[k] > 0.0 {
+            Some(self.num[k] / self.den[k])
+        } else {
+            None
+        }
+    }
+
+    /// The sums (and gradients when asked) exactly at view depth `z` along the ray.
+    fn point(&self, z: f64, gradient: bool) -> Point {
+        let kernel = self.caster.params.kernel;
+        let (o, d) = (self.ray.o, self.ray.d);
+        let x = [o[0] + z * d[0], o[1] + z * d[1], o[2] + z * d[2]];
+        let mut pt = Point::default();
+        for p in self.passes {
+            let dz = z - p.t;
+            let r = (p.r2 + self.ray.dd * dz * dz).sqrt();
+            let q = r * p.inv_h;
+            if q >= 1.0 {
+                continue;
+            }
+            let s = kernel.shape(q);
+            for (sum, w) in pt.s.iter_mut().zip(p.w) {
+                *sum += w * s;
+            }
+            if gradient && r > 0.0 {
+                let f = kernel.shape_slope(q) * p.inv_h / r;
+                let dx = [x[0] - p.c[0], x[1] - p.c[1], x[2] - p.c[2]];
+                for (g, w) in pt.g.iter_mut().zip(p.w) {
+                    for a in 0..3 {
+                        g[a] += w * f * dx[a];
+                    }
+                }
+            }
+        }
+        pt
+    }
+
+    /// The depth in `(za, zb)` where the field crosses `v`, given its values `fa`, `fb` on
+    /// either side (Illinois regula falsi on the exact sum). `None` where the iteration meets
+    /// a gap in which no particle reaches (an undefined CSPH quotient): the field jumps across
+    /// the gap rather than crossing the level, so there is no surface there.
+    fn refine(&self, v: f64, (za, fa): (f64, f64), (zb, fb): (f64, f64)) -> Option<f64> {
+        let (mut a, mut ga, mut b, mut gb) = (za, fa - v, zb, fb - v);
+        let linear = |a: f64, ga: f64, b: f64, gb: f64| {
+            let z = (a * gb - b * ga) / (gb - ga);
+            if z > a && z < b {
+                z
+            } else {
+                0.5 * (a + b)
+            }
+        };
+        let mut kept = 0i8; // which end stayed twice in a row (Illinois halves its value)
+        for _ in 0..60 {
+            let z = linear(a, ga, b, gb);
+            if b - a <= 1e-9 * (zb - za) {
+                return Some(z);
+            }
+            let f = self.point(z, false).value(self.pick)?;
+            let g = f - v;
+            if (g >= 0.0) == (ga >= 0.0) {
+                (a, ga) = (z, g);
+                if kept == 1 {
+                    gb *= 0.5;
+                }
+                kept = 1;
+            } else {
+                (b, gb) = (z, g);
+                if kept == -1 {
+                    ga *= 0.5;
+                }
+                kept = -1;
+            }
+        }
+        Some(linear(a, ga, b, gb))
+    }
+
+    /// The crossings between samples k and k + 1, refined, in depth order: (depth, rising).
+    fn crossings(&self, k: usize, out: &mut Vec<(f64, bool)>) {
+        out.clear();
+        let (Some(fa), Some(fb)) = (self.at(k), self.at(k + 1)) else {
+            return;
+        };
+        let zs = self.caster.zs;
+        for &v in &self.caster.surfaces.values {
+            if (fa >= v) != (fb >= v) {
+                if let Some(z) = self.refine(v, (zs[k], fa), (zs[k + 1], fb)) {
+                    out.push((z, fb >= v));
+                }
+            }
+        }
+        out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+
+    /// Walks steps `range` front to back, compositing volume parts and surfaces.
+    fn run(&self, range: Range<usize>, sums: &Sums, out: &mut SurfaceRay) {
+        let (zs, params) = (self.caster.zs, self.caster.params);
+        let min_t = params.min_transmittance;
+        let mut hits = Vec::new();
+        for k in range {
+            if k + 1 < zs.len() - 1 {
+                self.crossings(k, &mut hits);
+            } else {
+                hits.clear();
+            }
+            let volume = self
+                .caster
+                .surfaces
+                .volume
+                .then(|| sums.value(k, params.field))
+                .flatten();
+            let mut z0 = zs[k];
+            for &(z, rising) in &hits {
+                if let Some(q) = volume {
+                    out.comp
+                        .sample(self.caster.tf, q, (z0, z), self.ray.dlen, min_t);
+                }
+                z0 = z;
+                self.surface(z, rising, out);
+                if out.comp.done {
+                    return;
+                }
+            }
+            if let Some(q) = volume {
+                out.comp
+                    .sample(self.caster.tf, q, (z0, zs[k + 1]), self.ray.dlen, min_t);
+            }
+            if out.comp.done {
+                return;
+            }
+        }
+    }
+
+    /// Shades and composites the surface at depth `z` (`rising`: the field grows past it).
+    fn surface(&self, z: f64, rising: bool, out: &mut SurfaceRay) {
+        let comp = &mut out.comp;
+        if z >= comp.limit {
+            comp.done = true; // behind opaque geometry or past the ray's region
+            return;
+        }
+        if z <= comp.near {
+            return; // in front of the ray's region
+        }
+        let c = self.caster;
+        let pt = self.point(z, true);
+        let g = pt.gradient(self.pick);
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let d = self.ray.d;
+        let n_view = if len > 0.0 {
+            let s = if rising { -1.0 / len } else { 1.0 / len };
+            g.map(|x| x * s)
+        } else {
+            d.map(|x| -x / self.ray.dlen)
+        };
+        let f = c.frame;
+        let world = |v: [f64; 3]| (f.right * v[0] + f.up * v[1] + f.forward * v[2]).to_array();
+        let n = world(n_view);
+        let to_eye = world(d.map(|x| -x / self.ray.dlen));
+        let base = match c.surfaces.colour {
+            Some(rgb) => rgb,
+            None => pt
+                .rendered(c.params.field)
+                .map_or([0.8; 3], |q| c.tf.eval(q).0),
+        };
+        let rgb = c
+            .surfaces
+            .lighting
+            .shade(base, n, to_eye, f.forward.to_array());
+        let a = c.surfaces.opacity;
+        comp.add(
+            [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
+            (z, z),
+            c.params.min_transmittance,
+        );
+        if out.first.is_none() {
+            out.first = Some((z as f32, n.map(|x| x as f32)));
+        }
+    }
+}
