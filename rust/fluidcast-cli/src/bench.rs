@@ -127,8 +127,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     // With a GPU, every adaptive render is repeated on it and reported in a second table.
     let mut sampling = a.sampling.clone();
-    sampling.mode = crate::view::Mode::Adaptive;
-    let backend = crate::render::open_backend(&sampling)?;
+    sampling.mode = Some(crate::view::Mode::Adaptive);
+    let backend = crate::render::open_backend(&sampling, crate::view::Mode::Adaptive)?;
     let gpu = backend.gpu();
     let base = a.sampling.params(&a.view, &a.particles)?;
     let base_tf = a.view.base_tf()?;

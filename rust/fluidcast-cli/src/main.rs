@@ -17,6 +17,7 @@ mod info;
 mod options;
 mod probe;
 mod render;
+mod surface;
 mod view;
 
 use std::path::PathBuf;

@@ -1,4 +1,5 @@
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -11,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
+use crate::surface::SurfaceArgs;
 use crate::view::{Mode, SamplingArgs, ViewArgs};
 use fluidcast_backend::{Backend, Renderer};
 
@@ -29,6 +31,8 @@ pub struct RenderArgs {
     view: ViewArgs,
     #[command(flatten)]
     sampling: SamplingArgs,
+    #[command(flatten)]
+    surface: SurfaceArgs,
     /// Background colour (RGB, 0..1) for PNG output.
     #[arg(long, default_value = "1,1,1")]
     background: String,
@@ -77,8 +81,8 @@ pub fn render_frame(
 
 /// Opens the backend for the adaptive renderer (the reference renderer runs on the CPU), and
 /// says where frames render.
-pub fn open_backend(s: &SamplingArgs) -> Result<Renderer> {
-    let r = match (s.backend, s.mode) {
+pub fn open_backend(s: &SamplingArgs, mode: Mode) -> Result<Renderer> {
+    let r = match (s.backend, mode) {
         (Backend::Gpu, Mode::Reference) => {
             bail!("--backend gpu renders the adaptive mode only (drop --mode reference)")
         }
@@ -277,16 +281,30 @@ pub fn print_notes(notes: &[String]) {
 struct Loaded {
     index: usize,
     particles: Particles,
+    /// The iso-surface field's array when it is another than the rendered one.
+    iso_values: Option<Arc<[f32]>>,
     read_ms: f64,
     prep_ms: f64,
 }
 
-fn load(input: &Input, file: &Path, spec: &ParticleSpec, index: usize) -> Result<Loaded> {
+/// What turns a data set into what a frame renders: the particles' spec and the iso-surface
+/// options (for a second array).
+struct Recipe<'a> {
+    spec: &'a ParticleSpec,
+    surface: &'a SurfaceArgs,
+    array: Option<&'a str>,
+}
+
+fn load(input: &Input, file: &Path, recipe: &Recipe, index: usize) -> Result<Loaded> {
     let t_read = Instant::now();
     let ds = input.read(file)?;
     let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
     let t_prep = Instant::now();
-    let particles = Particles::from_dataset(&ds, spec)?;
+    let particles = Particles::from_dataset(&ds, recipe.spec)?;
+    let iso_values = recipe
+        .surface
+        .other_values(recipe.array, &ds)
+        .with_context(|| format!("--iso-field {}", recipe.surface.iso_field))?;
     if particles.skipped_nonfinite > 0 {
         eprintln!(
             "warning: {}: skipped {} particles with NaN/Inf coordinates",
@@ -297,6 +315,7 @@ fn load(input: &Input, file: &Path, spec: &ParticleSpec, index: usize) -> Result
     Ok(Loaded {
         index,
         particles,
+        iso_values,
         read_ms,
         prep_ms: t_prep.elapsed().as_secs_f64() * 1e3,
     })
@@ -309,13 +328,13 @@ fn for_each_frame(
     input: &Input,
     all: &[(Option<f64>, PathBuf)],
     frames: &[usize],
-    spec: &ParticleSpec,
+    recipe: &Recipe,
     prefetch: bool,
     mut render: impl FnMut(Loaded) -> Result<()>,
 ) -> Result<()> {
     if !prefetch || frames.len() < 2 {
         for &fi in frames {
-            render(load(input, &all[fi].1, spec, fi)?)?;
+            render(load(input, &all[fi].1, recipe, fi)?)?;
         }
         return Ok(());
     }
@@ -323,7 +342,7 @@ fn for_each_frame(
         let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Loaded>>(0);
         scope.spawn(move || {
             for &fi in frames {
-                let loaded = load(input, &all[fi].1, spec, fi);
+                let loaded = load(input, &all[fi].1, recipe, fi);
                 let failed = loaded.is_err();
                 // A closed channel: the renderer stopped (an error); stop reading.
                 if tx.send(loaded).is_err() || failed {
@@ -399,20 +418,37 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let all = input.frames();
     let frames = select_frames(&a, &input, all.len())?;
     let spec = a.particles.spec()?;
-    let params = a.sampling.params(&a.view, &a.particles)?;
+    let mut params = a.sampling.params(&a.view, &a.particles)?;
+    let array = a.particles.array.as_deref();
+    a.surface.surfaces(array, None)?; // the options' own errors, before reading
+    let mode = a.sampling.mode(a.surface.on());
+    if a.surface.on() {
+        if a.sampling.backend == Backend::Gpu {
+            bail!("--iso: the GPU backend does not draw iso-surfaces yet; drop --backend gpu (surfaces render on the CPU)");
+        }
+        if a.sampling.mode.is_none() {
+            eprintln!("note: --iso: rendering with the reference ray caster (--mode reference); the adaptive renderer does not draw surfaces yet");
+        }
+    }
+    let recipe = Recipe {
+        spec: &spec,
+        surface: &a.surface,
+        array,
+    };
     let base_tf = a.view.base_tf()?;
     let mut tf = base_tf.clone();
 
     let progress = (frames.len() > 1).then(|| progress_bar(frames.len(), "frames"));
-    let renderer = open_backend(&a.sampling)?;
+    let renderer = open_backend(&a.sampling, mode)?;
     let mut camera: Option<Camera> = None;
     let mut all_stats = Vec::new();
     let started = Instant::now();
     let prefetch = !a.no_prefetch;
-    for_each_frame(&input, &all, &frames, &spec, prefetch, |frame| {
+    for_each_frame(&input, &all, &frames, &recipe, prefetch, |frame| {
         let Loaded {
             index: fi,
             particles,
+            iso_values,
             read_ms,
             prep_ms,
         } = frame;
@@ -429,16 +465,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 camera.insert(cam)
             }
         };
-        let (image, mut stats) = render_frame(
-            &particles,
-            None,
-            cam,
-            &tf,
-            &params,
-            a.sampling.mode,
-            &renderer,
-        )
-        .with_context(|| format!("rendering {}", file.display()))?;
+        params.surfaces = a.surface.surfaces(array, iso_values)?;
+        let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, mode, &renderer)
+            .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));
         let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') {

@@ -65,9 +65,10 @@ pub enum Mode {
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct SamplingArgs {
-    /// Renderer.
-    #[arg(long, value_enum, default_value = "adaptive")]
-    pub mode: Mode,
+    /// Renderer: adaptive, or reference (the default with --iso, which the adaptive renderer
+    /// does not draw yet).
+    #[arg(long, value_enum)]
+    pub mode: Option<Mode>,
     /// Where the adaptive renderer runs: auto (a hardware GPU if there is one, else the CPU
     /// with a note), cpu, or gpu (every stage in wgpu compute, f32; a software Vulkan such as
     /// Mesa's lavapipe counts too).
@@ -119,6 +120,15 @@ pub fn parse_tolerance(s: &str) -> Result<Option<f64>> {
 }
 
 impl SamplingArgs {
+    /// The renderer --mode names, else adaptive, or reference when surfaces are drawn.
+    pub fn mode(&self, surfaces: bool) -> Mode {
+        match self.mode {
+            Some(m) => m,
+            None if surfaces => Mode::Reference,
+            None => Mode::Adaptive,
+        }
+    }
+
     /// Render parameters for an image size and the particle options.
     pub fn params(&self, v: &ViewArgs, p: &ParticleArgs) -> Result<RenderParams> {
         let (width, height) = parse_size(&v.size)?;

@@ -508,6 +508,21 @@ impl Particles {
         Ok(p)
     }
 
+    /// The values of quantity `q` of `ds` at the particles [`Particles::from_dataset`] keeps
+    /// (the points with finite coordinates), in their order: a second attribute beside the
+    /// rendered one (e.g. the field of an iso-surface), checked as the rendered one is.
+    pub fn values_of(ds: &Dataset, q: &Quantity) -> Result<Vec<f32>, ParticleError> {
+        let values = quantity_values(ds, q)?;
+        let mut out = Vec::new();
+        for (i, x) in ds.points.iter().enumerate() {
+            if x.iter().all(|v| v.is_finite()) {
+                single_precision(&ds.path, i, false, &[("value", values[i])])?;
+                out.push(values[i] as f32);
+            }
+        }
+        Ok(out)
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.positions.len()

@@ -1,0 +1,207 @@
+//! `fluidcast render --iso` on real data against `fluidcast probe`: the surface depth in the
+//! EXR's Z channel is where the probed colour field first crosses the iso value along that
+//! pixel's ray.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+use std::path::Path;
+use std::process::Command;
+
+use fluidcast_image::Image;
+use fluidcast_view::Camera;
+
+fn fluidcast(args: &[&str]) -> String {
+    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+        .args(args)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(o.status.success(), "fluidcast {args:?}: {err}");
+    err
+}
+
+/// The probe CSV's `shepard` column (Σ V W: the colour field), one value per line.
+fn shepard_column(csv: &Path) -> Vec<f64> {
+    let text = std::fs::read_to_string(csv).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(4).unwrap().parse().unwrap())
+        .collect()
+}
+
+/// On the SPlisHSPlasH double dam break, at every 23rd pixel that shows a surface and along
+/// the ray of each, the colour field probed at twice the renderer's depth samples (same
+/// logarithmic spacing, `fluidcast probe`, which shares no ray code with the renderer) first
+/// crosses 0.5 within a quarter of a depth sample of the EXR's Z (the issue asks for one; a
+/// Z taken at the nearest sample, unrefined, would be off by up to half a sample), at 97 % of
+/// them or more (measured: all, the worst 0.09 samples off).
+#[test]
+fn surface_depth_is_the_first_crossing_of_the_probed_field() {
+    let Some(file) =
+        fluidcast_testkit::shared_data("splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu")
+    else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (exr, cam, stats) = (
+        dir.path().join("s.exr"),
+        dir.path().join("cam.json"),
+        dir.path().join("s.json"),
+    );
+    let (w, h) = (160u32, 120u32);
+    fluidcast(&[
+        "render",
+        file.to_str().unwrap(),
+        "--array",
+        "velocity:mag",
+        "--iso",
+        "0.5",
+        "--azimuth",
+        "30",
+        "--elevation",
+        "30",
+        "--size",
+        "160x120",
+        "--save-camera",
+        cam.to_str().unwrap(),
+        "--stats",
+        stats.to_str().unwrap(),
+        "-o",
+        exr.to_str().unwrap(),
+    ]);
+    let img = Image::read(&exr).unwrap();
+    assert!(
+        img.aovs.iter().any(|a| a.0 == "normal_x"),
+        "normals in the EXR"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let (near, far) = (s["near"].as_f64().unwrap(), s["far"].as_f64().unwrap());
+    let n = s["depth_samples_per_ray"].as_u64().unwrap() as usize;
+    let camera = Camera::from_json(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    let frame = camera.frame(w, h).unwrap();
+    let surfaced: Vec<(u32, u32)> = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .filter(|&(i, j)| img.depth[img.index(i, j)].is_finite())
+        .step_by(11)
+        .collect();
+    assert!(surfaced.len() > 100, "{} pixels sampled", surfaced.len());
+    // Twice the renderer's samples per ray, on the same logarithmic spacing.
+    let depths: Vec<f64> = (0..=2 * n)
+        .map(|k| near * (far / near).powf(k as f64 / (2 * n) as f64))
+        .collect();
+    let mut points = String::from("x,y,z\n");
+    for &(i, j) in &surfaced {
+        let (o, d) = frame.ray(i, j);
+        for z in &depths {
+            let x = o + d * *z;
+            points += &format!("{:.17e},{:.17e},{:.17e}\n", x.x, x.y, x.z);
+        }
+    }
+    let (pts, out) = (dir.path().join("p.csv"), dir.path().join("v.csv"));
+    std::fs::write(&pts, points).unwrap();
+    fluidcast(&[
+        "probe",
+        file.to_str().unwrap(),
+        "--array",
+        "velocity:mag",
+        "--points",
+        pts.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let colour = shepard_column(&out);
+    assert_eq!(colour.len(), surfaced.len() * depths.len());
+    let step = (far / near).powf(1.0 / n as f64) - 1.0; // one depth sample, relative to depth
+    let mut agree = 0;
+    let mut worst = 0.0f64;
+    for (r, &(i, j)) in surfaced.iter().enumerate() {
+        let f = &colour[r * depths.len()..(r + 1) * depths.len()];
+        let z = img.depth[img.index(i, j)] as f64;
+        let first = (1..f.len()).find(|&k| (f[k - 1] >= 0.5) != (f[k] >= 0.5));
+        let Some(k) = first else {
+            panic!("pixel {i},{j}: Z {z} but the probed field never crosses 0.5");
+        };
+        // Linear interpolation inside the probe's bracket.
+        let t = (0.5 - f[k - 1]) / (f[k] - f[k - 1]);
+        let zp = depths[k - 1] + t * (depths[k] - depths[k - 1]);
+        worst = worst.max((z - zp).abs() / (step * zp));
+        if (z - zp).abs() <= 0.25 * step * zp {
+            agree += 1;
+        } else {
+            eprintln!(
+                "pixel {i},{j}: Z {z}, probe crossing {zp} ({:.2} samples)",
+                (z - zp) / (step * zp)
+            );
+        }
+    }
+    eprintln!(
+        "{agree} of {} pixels within a quarter depth sample of the probed crossing (worst {worst:.3} samples)",
+        surfaced.len()
+    );
+    assert!(
+        agree as f64 >= 0.97 * surfaced.len() as f64,
+        "{agree} of {}",
+        surfaced.len()
+    );
+}
+
+/// Surfaces are refused by the renderers that do not draw them, with the way out named; bad
+/// iso options are errors before any file is read.
+#[test]
+fn iso_options_are_checked_and_refused_where_not_drawn() {
+    let sample = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../examples/data/sample_column.vtu"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            sample,
+            "--size",
+            "32x24",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
+            .args(&args)
+            .output()
+            .unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+        )
+    };
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["--iso", "0.5", "--mode", "adaptive"],
+            "adaptive grid renderer does not draw iso-surfaces",
+        ),
+        (
+            &["--iso", "0.5", "--backend", "gpu"],
+            "GPU backend does not draw iso-surfaces",
+        ),
+        (&["--iso", "0.5", "--iso-opacity", "0"], "opacity 0"),
+        (&["--iso", "0.5", "--light", "0,0,0"], "light direction"),
+        (&["--iso", "0.5", "--iso-field", "nosuch"], "nosuch"),
+        (&["--iso", "0.5", "--shading", "maybe"], "--shading 'maybe'"),
+    ];
+    for (extra, want) in cases {
+        let (code, err) = run(extra);
+        assert_eq!(code, Some(1), "{extra:?}: {err}");
+        assert!(err.contains(want), "{extra:?}: {err}");
+    }
+    let (code, err) = run(&[
+        "--iso",
+        "0.5,0.8",
+        "--iso-field",
+        "velocity:mag",
+        "--array",
+        "density",
+        "--volume",
+        "--light",
+        "1,1,0",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+}
