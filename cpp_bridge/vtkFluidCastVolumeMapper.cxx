@@ -2,6 +2,7 @@
 
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
+#include "vtkContourValues.h"
 #include "vtkDataArray.h"
 #include "vtkFieldData.h"
 #include "vtkInformation.h"
@@ -181,6 +182,31 @@ void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
     prop->GetScalarOpacityUnitDistance(0));
 }
 
+/** The iso-surfaces to draw: none unless the blend mode is ISOSURFACE_BLEND, then the
+ * property's iso values, lit with its Shade, Ambient, Diffuse, Specular and SpecularPower. */
+fluidcast::SurfaceSettings Surfaces(int blendMode, const char* field, double opacity,
+  bool withVolume, vtkVolumeProperty* prop)
+{
+  fluidcast::SurfaceSettings s;
+  s.iso_field = field ? field : "colour";
+  s.opacity = opacity;
+  s.with_volume = withVolume;
+  s.shade = prop->GetShade(0) != 0;
+  s.ambient = prop->GetAmbient(0);
+  s.diffuse = prop->GetDiffuse(0);
+  s.specular = prop->GetSpecular(0);
+  s.specular_power = prop->GetSpecularPower(0);
+  if (blendMode == vtkVolumeMapper::ISOSURFACE_BLEND)
+  {
+    vtkContourValues* values = prop->GetIsoSurfaceValues();
+    for (int i = 0; i < values->GetNumberOfContours(); ++i)
+    {
+      s.iso_values.push_back(values->GetValue(i));
+    }
+  }
+  return s;
+}
+
 /** A premultiplied RGBA image of sw × sh pixels (rows top first) interpolated bilinearly onto
  * the w × h pixels of the same window. */
 std::vector<float> Upsample(std::vector<float> small, int sw, int sh, int w, int h)
@@ -244,6 +270,7 @@ vtkFluidCastVolumeMapper::vtkFluidCastVolumeMapper()
   : Impl(new Internals)
 {
   this->SetKernel("cubic");
+  this->SetIsoSurfaceField("colour");
 }
 
 //------------------------------------------------------------------------------
@@ -252,6 +279,7 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
   this->SetRadiusArray(nullptr);
   this->SetKernel(nullptr);
   this->SetAdapter(nullptr);
+  this->SetIsoSurfaceField(nullptr);
 }
 
 //------------------------------------------------------------------------------
@@ -400,6 +428,19 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
         return false;
       }
       PassArray(r, this->RadiusArray, ra);
+    }
+    // The iso-surface field, when it is another point array than the rendered one.
+    const std::string iso = this->IsoSurfaceField ? this->IsoSurfaceField : "";
+    if (this->BlendMode == vtkVolumeMapper::ISOSURFACE_BLEND && !iso.empty() &&
+      iso != "colour" && iso != "color" && iso != "density" && iso != scalarName)
+    {
+      vtkDataArray* ia = pd->GetArray(iso.c_str());
+      if (!ia)
+      {
+        FLUIDCAST_FAIL("the input has no point array '" << iso << "' (IsoSurfaceField)");
+        return false;
+      }
+      PassArray(r, iso, ia);
     }
     for (const char* n : kVolumeArrays)
     {
@@ -563,6 +604,20 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     return;
   }
+  if (this->BlendMode != vtkVolumeMapper::COMPOSITE_BLEND &&
+    this->BlendMode != vtkVolumeMapper::ISOSURFACE_BLEND)
+  {
+    FLUIDCAST_FAIL("blend mode " << this->BlendMode
+                                 << " is not supported (composite or iso-surface only)");
+    return;
+  }
+  if (this->BlendMode == vtkVolumeMapper::ISOSURFACE_BLEND &&
+    vol->GetProperty()->GetIsoSurfaceValues()->GetNumberOfContours() == 0)
+  {
+    FLUIDCAST_FAIL("blend mode iso-surface without iso values (set them with the volume "
+                   "property's GetIsoSurfaceValues()->SetValue)");
+    return;
+  }
   vtkCamera* cam = ren->GetActiveCamera();
   if (cam->GetUseHorizontalViewAngle() || cam->GetUseOffAxisProjection())
   {
@@ -597,6 +652,8 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     fluidcast::Renderer& r = *this->Impl->Renderer;
     r.set_camera(Describe(cam));
     SetTransferFunction(r, vol->GetProperty());
+    r.set_surfaces(Surfaces(this->BlendMode, this->IsoSurfaceField, this->IsoSurfaceOpacity,
+      this->IsoSurfaceWithVolume != 0, vol->GetProperty()));
     const double* c = this->CroppingRegionPlanes;
     const double* zs = this->SharedSupportDepths;
     r.set_part(rust::Slice<const double>(c, this->Cropping ? 6 : 0),
@@ -722,6 +779,11 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";
+  os << indent << "BlendMode: " << this->BlendMode << "\n";
+  os << indent << "IsoSurfaceField: " << (this->IsoSurfaceField ? this->IsoSurfaceField : "(none)")
+     << "\n";
+  os << indent << "IsoSurfaceOpacity: " << this->IsoSurfaceOpacity << "\n";
+  os << indent << "IsoSurfaceWithVolume: " << this->IsoSurfaceWithVolume << "\n";
   os << indent << "LastParticleCount: " << this->LastParticleCount << "\n";
   os << indent << "LastMaxRadius: " << this->LastMaxRadius << "\n";
   os << indent << "LastSamples: " << this->LastSamples << "\n";

@@ -36,6 +36,7 @@
 
 #include "fluidcastRenderingModule.h" // for export macro
 #include "vtkAbstractVolumeMapper.h"
+#include "vtkVolumeMapper.h" // for the blend mode constants
 
 #include <memory> // for std::unique_ptr
 #include <string> // for std::string
@@ -131,6 +132,32 @@ public:
    */
   vtkSetStringMacro(Adapter);
   vtkGetStringMacro(Adapter);
+  ///@}
+
+  ///@{
+  /**
+   * Iso-surfaces, as vtkGPUVolumeRayCastMapper draws them: with BlendMode
+   * vtkVolumeMapper::ISOSURFACE_BLEND the surfaces at the vtkVolumeProperty's
+   * GetIsoSurfaceValues() are drawn, found exactly along each ray and lit with the property's
+   * Shade, Ambient, Diffuse, Specular and SpecularPower (a headlight; Shade off: flat colour),
+   * coloured by the rendered array through the colour transfer function.
+   * vtkVolumeMapper::COMPOSITE_BLEND (default): the volume. Other blend modes are errors.
+   * IsoSurfaceField: "colour" (default: Σ V W with V = m/ρ, about 1 inside the fluid, so 0.5
+   * is the free surface), "density" (Σ m W) or a point array's name (its CSPH field).
+   * IsoSurfaceOpacity in (0, 1]; IsoSurfaceWithVolume also composites the volume, in depth
+   * order with the surfaces. Surfaces render on the CPU whatever the Backend.
+   */
+  vtkSetMacro(BlendMode, int);
+  vtkGetMacro(BlendMode, int);
+  void SetBlendModeToComposite() { this->SetBlendMode(vtkVolumeMapper::COMPOSITE_BLEND); }
+  void SetBlendModeToIsoSurface() { this->SetBlendMode(vtkVolumeMapper::ISOSURFACE_BLEND); }
+  vtkSetStringMacro(IsoSurfaceField);
+  vtkGetStringMacro(IsoSurfaceField);
+  vtkSetClampMacro(IsoSurfaceOpacity, double, 0.0, 1.0);
+  vtkGetMacro(IsoSurfaceOpacity, double);
+  vtkSetMacro(IsoSurfaceWithVolume, vtkTypeBool);
+  vtkGetMacro(IsoSurfaceWithVolume, vtkTypeBool);
+  vtkBooleanMacro(IsoSurfaceWithVolume, vtkTypeBool);
   ///@}
 
   ///@{
@@ -256,6 +283,10 @@ protected:
   char* Adapter = nullptr;
   int VectorMode = -1;
   int VectorComponent = 0;
+  int BlendMode = vtkVolumeMapper::COMPOSITE_BLEND;
+  char* IsoSurfaceField = nullptr;
+  double IsoSurfaceOpacity = 1.0;
+  vtkTypeBool IsoSurfaceWithVolume = 0;
   vtkTypeBool AutoAdjustSampleDistances = 1;
   int ImageSampleDistance = 1;
   int MinimumImageSampleDistance = 1;

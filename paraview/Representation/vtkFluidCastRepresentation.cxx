@@ -18,6 +18,8 @@
 #include "vtkRenderer.h"
 #include "vtkScalarsToColors.h"
 #include "vtkSmartVolumeMapper.h"
+#include "vtkContourValues.h"
+#include "vtkVolumeMapper.h"
 #include "vtkVolumeProperty.h"
 
 #include <cstring>
@@ -245,6 +247,59 @@ void vtkFluidCastRepresentation::SetKernel(int kernel)
     return;
   }
   this->Mapper->SetKernel(name.c_str());
+}
+
+void vtkFluidCastRepresentation::SetNumberOfIsosurfaces(int n)
+{
+  this->Property->GetIsoSurfaceValues()->SetNumberOfContours(n);
+  this->Mapper->SetBlendMode(
+    n > 0 ? vtkVolumeMapper::ISOSURFACE_BLEND : vtkVolumeMapper::COMPOSITE_BLEND);
+}
+
+void vtkFluidCastRepresentation::SetIsosurfaceValue(int i, double value)
+{
+  this->Property->GetIsoSurfaceValues()->SetValue(i, value);
+  this->Mapper->SetBlendMode(vtkVolumeMapper::ISOSURFACE_BLEND);
+}
+
+void vtkFluidCastRepresentation::SetIsosurfaceField(const char* name)
+{
+  this->Mapper->SetIsoSurfaceField(name && name[0] ? name : "colour");
+}
+
+void vtkFluidCastRepresentation::SetIsosurfaceOpacity(double opacity)
+{
+  this->Mapper->SetIsoSurfaceOpacity(opacity);
+}
+
+void vtkFluidCastRepresentation::SetIsosurfaceWithVolume(int on)
+{
+  this->Mapper->SetIsoSurfaceWithVolume(on);
+}
+
+void vtkFluidCastRepresentation::SetShade(int on)
+{
+  this->Property->SetShade(on);
+}
+
+void vtkFluidCastRepresentation::SetAmbient(double v)
+{
+  this->Property->SetAmbient(v);
+}
+
+void vtkFluidCastRepresentation::SetDiffuse(double v)
+{
+  this->Property->SetDiffuse(v);
+}
+
+void vtkFluidCastRepresentation::SetSpecular(double v)
+{
+  this->Property->SetSpecular(v);
+}
+
+void vtkFluidCastRepresentation::SetSpecularPower(double v)
+{
+  this->Property->SetSpecularPower(v);
 }
 
 void vtkFluidCastRepresentation::SetErrorTolerance(double e)

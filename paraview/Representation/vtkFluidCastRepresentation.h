@@ -72,6 +72,25 @@ public:
   void SetMaximumImageSampleDistance(int s);
   ///@}
 
+  ///@{
+  /**
+   * Iso-surfaces (vtkFluidCastVolumeMapper's iso-surface blend mode): the values go to the
+   * volume property's GetIsoSurfaceValues() (any: iso-surface blend mode; none: the volume);
+   * the field, opacity and "with volume" to the mapper; shading (Shade, Ambient, Diffuse,
+   * Specular, SpecularPower) to the volume property, whose lighting the mapper applies.
+   */
+  void SetNumberOfIsosurfaces(int n);
+  void SetIsosurfaceValue(int i, double value);
+  void SetIsosurfaceField(const char* name);
+  void SetIsosurfaceOpacity(double opacity);
+  void SetIsosurfaceWithVolume(int on);
+  void SetShade(int on);
+  void SetAmbient(double v);
+  void SetDiffuse(double v);
+  void SetSpecular(double v);
+  void SetSpecularPower(double v);
+  ///@}
+
   /** The mapper, for scripts that read LastDevice, LastSamples, ... */
   vtkFluidCastVolumeMapper* GetFluidCastMapper() { return this->Mapper; }
 

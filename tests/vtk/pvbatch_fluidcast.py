@@ -3,7 +3,7 @@ representation, save a screenshot and compare it with `fluidcast render` for the
 colour map and opacity function.
 
     pvbatch pvbatch_fluidcast.py PLUGIN.so DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE [BACKEND]
-            [--properties]
+            [--properties] [--iso]
 
 TOLERANCE is the representation's error tolerance (a number; 0 = full rate). The images must
 agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive (as the VTK window
@@ -12,7 +12,10 @@ also rendered with CPU and the two screenshots must agree within 2/255. --proper
 sets FluidCastSupportRadius, FluidCastKernel and a vector component (ColorBy ... "Z") away
 from their defaults: each screenshot must agree with the CLI render that uses the same
 option, and that CLI render must differ from the default screenshot by more than the
-agreement allows (so a property the representation ignored would fail). Exit code 0 pass,
+agreement allows (so a property the representation ignored would fail). --iso shows the
+free surface instead (FluidCastIsosurfaceValues 0.5 of the colour field, shaded, with
+FluidCastSpecularPower away from its default), compared with `fluidcast render --iso 0.5
+--specular-power 20`; the volume-only CLI render must differ from it. Exit code 0 pass,
 1 fail, 77 skipped (data not present).
 """
 import json
@@ -36,8 +39,11 @@ from paraview.simple import (
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
-args = [a for a in sys.argv[1:] if a != "--properties"]
+args = [a for a in sys.argv[1:] if a not in ("--properties", "--iso")]
 properties = "--properties" in sys.argv
+iso = "--iso" in sys.argv
+# The CLI options that match the representation's iso-surface properties below.
+iso_extra = ("--iso", "0.5", "--specular-power", "20") if iso else ()
 plugin, data, array, out, cli, tolerance = args[:6]
 backend = args[6] if len(args) > 6 else "Auto"
 tolerance = float(tolerance)
@@ -77,6 +83,9 @@ display.ScalarOpacityUnitDistance = 0.1
 display.FluidCastErrorTolerance = tolerance
 display.FluidCastBackend = backend
 # No radius set: the file's support_radius field data (or the spacing-based suggestion).
+if iso:
+    display.FluidCastIsosurfaceValues = [0.5]
+    display.FluidCastSpecularPower = 20
 
 view.ResetCamera()
 cam = GetActiveCamera()
@@ -103,8 +112,9 @@ with open(os.path.join(out, "camera.json"), "w") as f:
                "parallel_scale": cam.GetParallelScale()}, f)
 
 
-def cli_render(png, component="mag", extra=()):
-    """`fluidcast render` of the view (camera, colour map, range of the shown component)."""
+def cli_render(png, component="mag", extra=(), surfaces=True):
+    """`fluidcast render` of the view (camera, colour map, range of the shown component), with
+    the iso-surfaces of --iso unless `surfaces` is false."""
     with open(os.path.join(out, "tf.json"), "w") as f:
         json.dump([{"Name": "from ParaView", "ColorSpace": "RGB",
                     "RGBPoints": list(lut.RGBPoints), "Points": list(pwf.Points)}], f)
@@ -113,7 +123,7 @@ def cli_render(png, component="mag", extra=()):
            "--camera", os.path.join(out, "camera.json"), "--size", f"{W}x{H}",
            "--opacity-unit-distance", "0.1", "--background", "1,1,1",
            "--error-tolerance", "off" if tolerance <= 0 else str(tolerance), "--backend", "cpu",
-           *extra, "-o", png]
+           *(iso_extra if surfaces else ()), *extra, "-o", png]
     print(" ".join(cmd))
     subprocess.run(cmd, check=True)
 
@@ -152,6 +162,14 @@ if backend == "GPU":
     drawn_none = int((read(screenshot("no_adapter")) != 255).any(axis=1).sum())
     print(f"FluidCastAdapter 'no-such-gpu': {drawn_none} pixels drawn (expected none)")
     status = status or (0 if drawn_none == 0 else 1)
+if iso:
+    volume_png = os.path.join(out, "cli_volume.png")
+    cli_render(volume_png, surfaces=False)
+    moved = int(abs(a - read(volume_png)).max())
+    print(f"iso-surface screenshot vs the CLI's volume: max {moved}/255 (must exceed {allowed})")
+    if moved <= allowed:
+        print("FAIL: the representation drew no surface")
+        status = 1
 if drawn < W * H // 20:
     print("FAIL: the representation drew almost nothing")
     status = 1

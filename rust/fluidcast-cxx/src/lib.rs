@@ -23,11 +23,11 @@ use std::time::Instant;
 
 use fluidcast_backend::Backend;
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
-use fluidcast_render::{PlanParams, RenderParams, SURFACE_THRESHOLD};
+use fluidcast_render::{IsoField, PlanParams, RenderParams, Surfaces, SURFACE_THRESHOLD};
 use fluidcast_sph::{
     Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
 
 #[cxx::bridge(namespace = "fluidcast")]
 mod ffi {
@@ -66,6 +66,27 @@ mod ffi {
         backend: i32,
         /// A GPU adapter by a part of its name ("" = the best; FLUIDCAST_ADAPTER applies).
         adapter: String,
+    }
+
+    /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
+    /// blend mode, with the volume property's iso values and lighting).
+    #[derive(Debug, Clone)]
+    struct SurfaceSettings {
+        /// Iso values; empty: no surfaces (the volume alone).
+        iso_values: Vec<f64>,
+        /// "colour" (Σ V W), "density" (Σ m W) or a point array's name (its CSPH field; the
+        /// rendered array's component rules when it is the rendered array).
+        iso_field: String,
+        /// Opacity of the surfaces, (0, 1].
+        opacity: f64,
+        /// Also composite the volume, in depth order with the surfaces.
+        with_volume: bool,
+        /// Blinn–Phong lighting with a headlight (vtkVolumeProperty's Shade); off: flat.
+        shade: bool,
+        ambient: f64,
+        diffuse: f64,
+        specular: f64,
+        specular_power: f64,
     }
 
     /// What a render did (for the mapper's messages and tests).
@@ -145,6 +166,9 @@ mod ffi {
             opacity: &[f64],
             unit_distance: f64,
         ) -> Result<()>;
+        /// The iso-surfaces of the renders that follow (checked here; an iso field that is
+        /// another point array must have been added with the data).
+        fn set_surfaces(self: &mut Renderer, surfaces: &SurfaceSettings) -> Result<()>;
         /// Builds the particles now (normally done by `render`) and reports them.
         fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
         /// The smallest and largest view depth of any particle's support for the camera set
@@ -171,7 +195,7 @@ mod ffi {
     }
 }
 
-pub use ffi::{CameraDesc, RenderInfo, Settings};
+pub use ffi::{CameraDesc, RenderInfo, Settings, SurfaceSettings};
 
 /// A data set read from a file, flattened for C++.
 pub struct ParticleFile {
@@ -233,6 +257,8 @@ pub struct Renderer {
     /// The backend opened for (backend, adapter), kept across frames.
     backend: Option<OpenBackend>,
     part: Part,
+    /// What `set_surfaces` said (no iso values: none).
+    surfaces: Option<ffi::SurfaceSettings>,
 }
 
 /// What `set_part` said: the crop box (min and max corners) and the whole's support depths.
@@ -282,6 +308,7 @@ fn new_renderer() -> Box<Renderer> {
         tf: None,
         backend: None,
         part: Part::default(),
+        surfaces: None,
     })
 }
 
@@ -468,6 +495,72 @@ impl Renderer {
         })
     }
 
+    fn set_surfaces(&mut self, s: &ffi::SurfaceSettings) -> Result<(), String> {
+        guarded("set_surfaces", || {
+            let keep = self.surfaces.take();
+            self.surfaces = Some(s.clone());
+            if let Err(e) = self.surfaces_now("") {
+                self.surfaces = keep;
+                return Err(e);
+            }
+            Ok(())
+        })
+    }
+
+    /// The iso-surfaces `set_surfaces` asked for, for the data now held (`scalars`: the
+    /// rendered array's name); `None` without iso values.
+    fn surfaces_now(&self, scalars: &str) -> Result<Option<Arc<Surfaces>>, String> {
+        let Some(s) = self.surfaces.as_ref().filter(|s| !s.iso_values.is_empty()) else {
+            return Ok(None);
+        };
+        let field = match s.iso_field.to_ascii_lowercase().as_str() {
+            "" | "colour" | "color" => IsoField::Colour,
+            "density" => IsoField::Density,
+            _ if s.iso_field == scalars => IsoField::Attribute(None),
+            _ if self.data.points.is_empty() => IsoField::Attribute(None), // no data yet
+            _ => {
+                let q = Quantity {
+                    array: s.iso_field.clone(),
+                    component: Component::Auto,
+                };
+                let v = Particles::values_of(&self.data, &q).map_err(|e| e.to_string())?;
+                IsoField::Attribute(Some(v.into()))
+            }
+        };
+        let lighting = if s.shade {
+            Lighting {
+                ambient: s.ambient,
+                diffuse: s.diffuse,
+                specular: s.specular,
+                specular_power: s.specular_power,
+                light: Light::Headlight,
+            }
+        } else {
+            Lighting {
+                ambient: 1.0,
+                diffuse: 0.0,
+                specular: 0.0,
+                ..Default::default()
+            }
+        };
+        let surfaces = Surfaces {
+            field,
+            values: s.iso_values.clone(),
+            opacity: s.opacity,
+            colour: None,
+            lighting,
+            volume: s.with_volume,
+        };
+        let n = match &surfaces.field {
+            IsoField::Attribute(Some(v)) => v.len(),
+            _ => 0,
+        };
+        surfaces
+            .validate(n)
+            .map_err(|e| format!("iso-surfaces: {e}"))?;
+        Ok(Some(Arc::new(surfaces)))
+    }
+
     fn prepare(&mut self) -> Result<ffi::RenderInfo, String> {
         guarded("prepare", || self.prepared().map(|p| p.info.clone()))
     }
@@ -630,15 +723,26 @@ impl Renderer {
             let t = Instant::now();
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             self.prepared()?;
+            params.surfaces = self.surfaces_now(&s.scalars)?;
             let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
             };
-            let device = b.renderer.device();
-            let r = b
-                .renderer
-                .render(&p.particles, Some(&p.surface), &camera, &tf, &params)
-                .map_err(|e| format!("{name} ({device}): {e}"))?;
-            let notes: Vec<&str> = [p.info.notes.as_str(), b.renderer.note().unwrap_or("")]
+            let (r, device, note) = if params.surfaces.is_some() {
+                let device = fluidcast_backend::Renderer::cpu().device();
+                let (image, stats) =
+                    fluidcast_render::render_reference(&p.particles, &camera, &tf, &params)
+                        .map_err(|e| format!("{name} ({device}): {e}"))?;
+                let note = "iso-surfaces render on the CPU (reference ray caster)";
+                (fluidcast_render::Rendered { image, stats }, device, note)
+            } else {
+                let device = b.renderer.device();
+                let r = b
+                    .renderer
+                    .render(&p.particles, Some(&p.surface), &camera, &tf, &params)
+                    .map_err(|e| format!("{name} ({device}): {e}"))?;
+                (r, device, b.renderer.note().unwrap_or(""))
+            };
+            let notes: Vec<&str> = [p.info.notes.as_str(), note]
                 .into_iter()
                 .filter(|n| !n.is_empty())
                 .collect();
@@ -753,6 +857,84 @@ mod tests {
         .unwrap();
         r.set_transfer_function(0.0, 6.0, &[0.0, 0.0, 1.0, 1.0, 0.0, 0.0], &[0.2, 0.8], 0.1)
             .unwrap();
+    }
+
+    fn surfaces(values: &[f64], field: &str) -> ffi::SurfaceSettings {
+        ffi::SurfaceSettings {
+            iso_values: values.to_vec(),
+            iso_field: field.into(),
+            opacity: 1.0,
+            with_volume: false,
+            shade: true,
+            ambient: 0.1,
+            diffuse: 0.7,
+            specular: 0.2,
+            specular_power: 10.0,
+        }
+    }
+
+    /// With iso values the bridge draws surfaces (on the CPU, whatever the backend) exactly
+    /// as the library's reference renderer does for the same particles; bad settings are
+    /// refused and the previous ones kept; no iso values: the volume again.
+    #[test]
+    fn surfaces_render_as_the_library_draws_them() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let (w, h) = (40u32, 30u32);
+        let mut volume = vec![0f32; 4 * 40 * 30];
+        let mut depth = vec![0f32; 40 * 30];
+        r.render(w, h, &[], &mut volume, &mut depth).unwrap();
+        for field in ["colour", "value"] {
+            r.set_surfaces(&surfaces(&[0.5], field)).unwrap();
+            let mut rgba = vec![0f32; 4 * 40 * 30];
+            let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+            assert!(
+                info.notes.contains("iso-surfaces render on the CPU"),
+                "{}",
+                info.notes
+            );
+            let p = r.prepared().unwrap().particles.clone();
+            let params = RenderParams {
+                width: w,
+                height: h,
+                surfaces: r.surfaces_now("value").unwrap(),
+                ..Default::default()
+            };
+            let (img, _) = fluidcast_render::render_reference(
+                &p,
+                r.camera.as_ref().unwrap(),
+                r.tf.as_ref().unwrap(),
+                &params,
+            )
+            .unwrap();
+            let want: Vec<f32> = img.rgba.iter().flatten().copied().collect();
+            assert_eq!(rgba, want, "{field}");
+            assert_ne!(rgba, volume, "{field}: surfaces drawn");
+            assert!(
+                depth.iter().any(|z| z.is_finite()),
+                "{field}: Z of the surface"
+            );
+        }
+        let bad = [
+            (surfaces(&[f64::NAN], "colour"), "not finite"),
+            (surfaces(&[0.5], "nosuch"), "nosuch"),
+            (
+                ffi::SurfaceSettings {
+                    opacity: 2.0,
+                    ..surfaces(&[0.5], "colour")
+                },
+                "opacity",
+            ),
+        ];
+        for (s, want) in bad {
+            let e = r.set_surfaces(&s).unwrap_err();
+            assert!(e.contains(want), "{e}");
+        }
+        assert_eq!(r.surfaces.as_ref().unwrap().iso_field, "value", "kept");
+        r.set_surfaces(&surfaces(&[], "colour")).unwrap();
+        let mut again = vec![0f32; 4 * 40 * 30];
+        r.render(w, h, &[], &mut again, &mut depth).unwrap();
+        assert_eq!(again, volume, "no iso values: the volume");
     }
 
     #[test]
