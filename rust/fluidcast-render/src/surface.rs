@@ -396,9 +396,8 @@ impl Walk<'_> {
         Some(linear(a, ga, b, gb))
     }
 
-    /// The crossings between samples k and k + 1, refined, in depth order: (depth, rising).
+    /// Adds the crossings between samples k and k + 1, refined: (depth, rising).
     fn crossings(&self, k: usize, out: &mut Vec<(f64, bool)>) {
-        out.clear();
         let (Some(fa), Some(fb)) = (self.at(k), self.at(k + 1)) else {
             return;
         };
@@ -410,20 +409,84 @@ impl Walk<'_> {
                 }
             }
         }
-        out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+
+    /// Adds the crossings hidden between samples m − 1 and m + 1: where sample m is a local
+    /// maximum below an iso value (or a minimum above it), the field between the samples may
+    /// still pass the value (a ray grazing a surface at a silhouette, a sheet or droplet
+    /// thinner than a depth sample). The extremum of the exact sum on that span (golden
+    /// section) decides; beyond the value, the crossings on either side of it are refined.
+    fn hidden(&self, m: usize, out: &mut Vec<(f64, bool)>) {
+        let zs = self.caster.zs;
+        if m == 0 || m + 1 >= zs.len() - 1 {
+            return;
+        }
+        let (Some(a), Some(f), Some(b)) = (self.at(m - 1), self.at(m), self.at(m + 1)) else {
+            return;
+        };
+        let values = &self.caster.surfaces.values;
+        let max = f >= a && f >= b && values.iter().any(|&v| f < v);
+        let min = f <= a && f <= b && values.iter().any(|&v| f >= v);
+        if !(max || min) {
+            return;
+        }
+        let Some((ze, fe)) = self.extremum(zs[m - 1], zs[m + 1], max) else {
+            return;
+        };
+        for &v in values {
+            let beyond = if max {
+                f < v && fe >= v
+            } else {
+                f >= v && fe < v
+            };
+            if beyond {
+                if let Some(z) = self.refine(v, (zs[m - 1], a), (ze, fe)) {
+                    out.push((z, max));
+                }
+                if let Some(z) = self.refine(v, (ze, fe), (zs[m + 1], b)) {
+                    out.push((z, !max));
+                }
+            }
+        }
+    }
+
+    /// The largest (`max`) or smallest value of the exact field on `[a, b]` by golden-section
+    /// search, and where; `None` where the field is undefined on the way.
+    fn extremum(&self, mut a: f64, mut b: f64, max: bool) -> Option<(f64, f64)> {
+        let sign = if max { 1.0 } else { -1.0 };
+        let f = |z: f64| self.point(z, false).value(self.pick).map(|x| sign * x);
+        let g = 0.5 * (5f64.sqrt() - 1.0);
+        let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+        let (mut fc, mut fd) = (f(c)?, f(d)?);
+        for _ in 0..30 {
+            if fc > fd {
+                (b, d, fd) = (d, c, fc);
+                c = b - g * (b - a);
+                fc = f(c)?;
+            } else {
+                (a, c, fc) = (c, d, fd);
+                d = a + g * (b - a);
+                fd = f(d)?;
+            }
+        }
+        let z = 0.5 * (a + b);
+        Some((z, sign * f(z)?))
     }
 
     /// Walks steps `range` front to back, compositing volume parts and surfaces.
     fn run(&self, range: Range<usize>, sums: &Sums, out: &mut SurfaceRay) {
         let (zs, params) = (self.caster.zs, self.caster.params);
         let min_t = params.min_transmittance;
-        let mut hits = Vec::new();
+        // Crossings found but not yet composited (a hidden one may lie in the next step).
+        let mut pending: Vec<(f64, bool)> = Vec::new();
         for k in range {
             if k + 1 < zs.len() - 1 {
-                self.crossings(k, &mut hits);
-            } else {
-                hits.clear();
+                self.crossings(k, &mut pending);
+                self.hidden(k + 1, &mut pending);
+                pending.sort_by(|a, b| a.0.total_cmp(&b.0));
             }
+            let here = pending.partition_point(|h| h.0 < zs[k + 1]);
+            let hits: Vec<(f64, bool)> = pending.drain(..here).collect();
             let volume = self
                 .caster
                 .surfaces

@@ -227,8 +227,11 @@ fn brute_crossing(
 /// depth in every pixel is the first crossing of the brute-force field along that pixel's
 /// ray (a march 10x finer than the renderer's samples, then bisection), for the colour field
 /// and for the CSPH attribute (the quotient's gradient): equal to 1e-6 of the depth wherever
-/// both find one, and the renderer finds no crossing the march does not. Where they differ,
-/// the march found a thin crossing that lies between two of the renderer's samples. Each
+/// both find one, and the renderer finds no crossing the march does not. The march may find
+/// more: a crossing between two of the renderer's samples that no sample's extremum shows
+/// (measured: none for the colour field, 2 of 120 pixels for the attribute, where the
+/// quotient is undefined in gaps between particles; 1 for the colour field before the
+/// renderer searched around local extrema). Each
 /// normal is the brute-force gradient's direction (facing the eye) within 0.5 degrees.
 #[test]
 fn surface_depth_is_the_brute_force_first_crossing() {
@@ -315,7 +318,7 @@ fn surface_depth_is_the_brute_force_first_crossing() {
             "{label}: {equal} of {both} at the brute-force depth"
         );
         assert!(
-            only_brute as f64 <= 0.03 * both as f64,
+            only_brute as f64 <= 0.02 * both as f64,
             "{label}: {only_brute} crossings missed"
         );
     }
@@ -441,4 +444,71 @@ fn surfaces_are_refused_where_not_drawn_and_checked() {
         let e = render_reference(&p, &cam, &tf(), &params(32, Kernel::CubicSpline, s)).unwrap_err();
         assert!(e.to_string().contains(want), "{e} lacks {want}");
     }
+}
+
+/// A sheet one particle thick seen face on, at an iso value just below the colour field's
+/// smallest peak across it: the field exceeds the value over a span thinner than a depth
+/// sample, so on many rays no two samples straddle it. Every ray through the sheet's
+/// interior still shows the surface (found around the samples' local maximum), at a depth
+/// where the brute-force field equals the value, on the camera's side of the sheet. (Without
+/// the search around local extrema 252 of the 572 rays showed it.)
+#[test]
+fn a_sheet_thinner_than_a_depth_sample_is_not_missed() {
+    let (s, h) = (0.05f32, 0.1f32);
+    let mut p = Particles::default();
+    for i in -12..=12 {
+        for j in -12..=12 {
+            p.positions.push([i as f32 * s, j as f32 * s, 0.0]);
+            p.radii.push(h);
+            p.volumes.push(s * s * s);
+            p.masses.push(1.0);
+            p.values.push(1.0);
+        }
+    }
+    let kernel = Kernel::CubicSpline;
+    // The smallest peak over the interior (on the plane, where the field is largest).
+    let peak = (0..=20)
+        .flat_map(|a| (0..=20).map(move |b| [a as f64 * 0.0025, b as f64 * 0.0025, 0.0]))
+        .map(|x| brute(&p, kernel, x)[1])
+        .fold(f64::INFINITY, f64::min);
+    let iso = 0.99 * peak;
+    let mut cam = Camera::default();
+    cam.reset([-0.7, -0.7, -0.1], [0.7, 0.7, 0.1]);
+    cam.azimuth(20.0); // the sheet's depth varies across the image: samples at every phase
+    let size = 64;
+    let surfaces = Surfaces {
+        values: vec![iso],
+        ..Default::default()
+    };
+    let (img, stats) = render_reference(&p, &cam, &tf(), &params(size, kernel, surfaces)).unwrap();
+    let step = (stats.far - stats.near) / stats.depth_samples as f64;
+    let (mut interior, mut shown) = (0, 0);
+    for j in 0..size {
+        for i in 0..size {
+            let frame = cam.frame(size, size).unwrap();
+            let (o, d) = frame.ray(i, j);
+            let at_plane = o + d * ((0.0 - o.z) / d.z);
+            if at_plane.x.abs() > 0.4 || at_plane.y.abs() > 0.4 {
+                continue;
+            }
+            interior += 1;
+            let z = img.depth[img.index(i, j)] as f64;
+            if z.is_finite() {
+                shown += 1;
+                let y = (o + d * z).to_array();
+                let f = brute(&p, kernel, y)[1];
+                assert!(
+                    (f - iso).abs() < 1e-6 * iso,
+                    "{i},{j}: field {f} at the surface, iso {iso}"
+                );
+                assert!(y[2] > 0.0, "{i},{j}: the far side of the sheet ({})", y[2]);
+            }
+        }
+    }
+    eprintln!("sheet: {shown} of {interior} interior pixels show it; iso {iso:.5} (peak {peak:.5}); depth step {step:.4}");
+    assert!(interior > 500, "{interior} interior pixels");
+    assert_eq!(
+        shown, interior,
+        "rays through the sheet that show no surface"
+    );
 }
