@@ -8,7 +8,12 @@ One dataset, one camera, one transfer function, rendered with
   (a) VTK's own SPH pipeline: vtkSPHInterpolator onto a vtkImageData grid (one image per
       --resolution), then vtkSmartVolumeMapper;
   (b) Point Gaussian splats (pyvista, style='points_gaussian');
-  (c) fluidcast, reference and adaptive modes (the CLI).
+  (c) fluidcast, reference and adaptive modes (the CLI);
+  (d) with --iso V (default 0.5; "none" skips it), the free surface: fluidcast's
+      ``render --iso V`` beside VTK's vtkFlyingEdges3D contour of the colour field Σ V W
+      resampled by vtkSPHInterpolator (one per --resolution), both white under a headlight
+      with vtkProperty's Ambient 0.1, Diffuse 0.7, Specular 0.2, SpecularPower 10 (a third
+      row in the figure, rows "surface: ..." in the table, differences to fluidcast's surface).
 
 Writes to DIR: each image as PNG, ``figure.png`` (the images in a row, the difference to
 fluidcast's reference below each), ``table.md`` and ``table.json`` (wall time to image,
@@ -34,7 +39,14 @@ from fluidcast.cli import fluidcast_binary, run_fluidcast
 from fluidcast.data import point_array, read_points, support_radius, volume_arrays
 from fluidcast.images import difference, read_png, write_png
 from fluidcast.transfer import matplotlib_tf, preset_to_vtk, rescaled, tf_to_preset
-from fluidcast.vtk_sph import VTK_KERNELS, render_splats, render_volume, sph_volume
+from fluidcast.vtk_sph import (
+    VTK_KERNELS,
+    colour_field,
+    render_iso_surface,
+    render_splats,
+    render_volume,
+    sph_volume,
+)
 
 
 def parse_args(argv=None):
@@ -74,6 +86,8 @@ def parse_args(argv=None):
     p.add_argument("--background", default="1,1,1", help="r,g,b in 0..1")
     p.add_argument("--splat-radius", type=float,
                    help="Point Gaussian radius in world units (default H/2)")
+    p.add_argument("--iso", default="0.5",
+                   help="colour-field iso value of the surface row, or 'none' (default 0.5)")
     p.add_argument("--no-figure", action="store_true", help="skip figure.png (no matplotlib)")
     return p.parse_args(argv)
 
@@ -208,6 +222,11 @@ def run(a) -> dict:
 
     for r, img in zip(rows, images.values()):
         r.update(difference(img, ref))
+    surfaces = {}
+    if a.iso.lower() != "none":
+        surface_rows, surfaces = surface_row(a, ds, common, binary, cam, size, background, H,
+                                             (mass, density))
+        rows += surface_rows
     table = dict(data=str(path), array=a.array, particles=n, support_radius=H,
                  size=[w, h], range=[lo, hi], opacity_unit_distance=unit, rows=rows)
     (out / "table.json").write_text(json.dumps(table, indent=1))
@@ -215,7 +234,7 @@ def run(a) -> dict:
     print(markdown(table))
     if not a.no_figure:
         figure(images, ref, [r["rmse"] for r in rows], out / "figure.png",
-               f"{path.name}: {a.array}")
+               f"{path.name}: {a.array}", surfaces)
         print(f"wrote {out / 'figure.png'}")
     return table
 
@@ -251,7 +270,37 @@ def crop_box(images, pad=12):
             slice(max(cols[0] - pad, 0), cols[-1] + pad + 1))
 
 
-def figure(images, ref, rmse, path, title):
+def surface_row(a, ds, common, binary, cam, size, background, H, volumes):
+    """fluidcast's iso-surface of the colour field and VTK's contours of it (white, the same
+    headlight and coefficients); returns the table rows (differences to fluidcast's surface)
+    and the images by name."""
+    iso = numbers(a.iso, 1, "--iso")[0]
+    out = a.out
+    png = out / "fluidcast_surface.png"
+    t = time.perf_counter()
+    run_fluidcast(*common, "--iso", iso, "--iso-color", "1,1,1", "-o", png, binary=binary)
+    images = {"fluidcast surface": read_png(png)}
+    rows = [dict(method=f"surface: fluidcast --iso {iso:g}", image=png.name,
+                 wall_s=time.perf_counter() - t, resample_s=None, render_s=None, grid_mb=None)]
+    print(f"  fluidcast surface    {rows[-1]['wall_s']:7.2f} s wall")
+    for res in (int(r) for r in a.resolution.split(",")):
+        t = time.perf_counter()
+        vol = colour_field(ds, a.kernel, H, res, *volumes)
+        img = render_iso_surface(vol, iso, cam, size=size, background=background)
+        name = f"VTK contour {res}"
+        png = out / f"vtk_contour_{res}.png"
+        write_png(png, img)
+        images[name] = img
+        rows.append(dict(method=f"surface: {name} (vtkFlyingEdges3D)", image=png.name,
+                         wall_s=time.perf_counter() - t, resample_s=vol.seconds, render_s=None,
+                         grid_mb=vol.bytes / 2**20))
+        print(f"  {name:20s} {rows[-1]['wall_s']:7.2f} s wall")
+    for r, img in zip(rows, images.values()):
+        r.update(difference(img, images["fluidcast surface"]))
+    return rows, images
+
+
+def figure(images, ref, rmse, path, title, surfaces=None):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -260,10 +309,21 @@ def figure(images, ref, rmse, path, title):
     box = crop_box(images)
     images = {n: i[box] for n, i in images.items()}
     ref = ref[box]
-    k = len(images)
+    surfaces = {n: i[box] for n, i in (surfaces or {}).items()}
+    k = max(len(images), len(surfaces))
+    nrows = 3 if surfaces else 2
     aspect = ref.shape[0] / ref.shape[1]
-    fig, ax = plt.subplots(2, k, figsize=(3.2 * k + 1.2, 2 * 3.2 * aspect + 1.0),
+    fig, ax = plt.subplots(nrows, k, figsize=(3.2 * k + 1.2, nrows * 3.2 * aspect + 1.0),
                            squeeze=False, layout="constrained")
+    for c in range(k):
+        for r in range(nrows):
+            ax[r, c].set_xticks([])
+            ax[r, c].set_yticks([])
+            ax[r, c].axis("on" if (r < 2 and c < len(images)) or
+                          (r == 2 and c < len(surfaces)) else "off")
+    for c, (name, img) in enumerate(surfaces.items()):
+        ax[2, c].imshow(img)
+        ax[2, c].set_title(name, fontsize=9)
     diffs = {n: np.abs(i.astype(float) - ref.astype(float)).max(axis=2) / 255
              for n, i in images.items()}
     vmax = max(0.05, max(np.percentile(d, 99.5) for d in diffs.values()))
@@ -272,9 +332,6 @@ def figure(images, ref, rmse, path, title):
         ax[0, c].set_title(name, fontsize=9)
         im = ax[1, c].imshow(diffs[name], cmap="magma", vmin=0, vmax=vmax)
         ax[1, c].set_title(f"|diff| (whole image RMSE {e:.4f})", fontsize=8)
-        for r in (0, 1):
-            ax[r, c].set_xticks([])
-            ax[r, c].set_yticks([])
     fig.colorbar(im, ax=ax[:, -1].tolist(), shrink=0.8, label="|difference| vs fluidcast "
                  "reference (max channel, 0..1)")
     fig.suptitle(title)
