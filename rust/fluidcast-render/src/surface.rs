@@ -416,6 +416,11 @@ impl Walk<'_> {
     /// still pass the value (a ray grazing a surface at a silhouette, a sheet or droplet
     /// thinner than a depth sample). The extremum of the exact sum on that span (golden
     /// section) decides; beyond the value, the crossings on either side of it are refined.
+    /// Searched only where the value lies within the samples' own swing of the extremum
+    /// sample (`|v − f_m| ≤ |f_m − f_{m±1}|`, the farther neighbour): a parabola through the
+    /// samples overshoots its largest sample by at most 1/8 of that swing, so a field that
+    /// needs more between two samples is far from smooth at this sampling, while the ripples
+    /// inside a fluid (colour ≈ 1 against a value of 0.5) cost no search.
     fn hidden(&self, m: usize, out: &mut Vec<(f64, bool)>) {
         let zs = self.caster.zs;
         if m == 0 || m + 1 >= zs.len() - 1 {
@@ -425,8 +430,10 @@ impl Walk<'_> {
             return;
         };
         let values = &self.caster.surfaces.values;
-        let max = f >= a && f >= b && values.iter().any(|&v| f < v);
-        let min = f <= a && f <= b && values.iter().any(|&v| f >= v);
+        let swing = (f - a).abs().max((f - b).abs());
+        let near = |v: f64| (v - f).abs() <= swing;
+        let max = f >= a && f >= b && values.iter().any(|&v| f < v && near(v));
+        let min = f <= a && f <= b && values.iter().any(|&v| f >= v && near(v));
         if !(max || min) {
             return;
         }
