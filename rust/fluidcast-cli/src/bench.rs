@@ -7,7 +7,8 @@ use anyhow::{bail, Context, Result};
 use fluidcast_image::{compare, Image};
 use fluidcast_io::Input;
 use fluidcast_render::{
-    render_adaptive, render_object_space, render_reference, RenderStats, SURFACE_THRESHOLD,
+    render_adaptive, render_object_space, render_perspective_grid, render_reference, RenderStats,
+    SURFACE_THRESHOLD,
 };
 use fluidcast_sph::Particles;
 use serde_json::json;
@@ -43,6 +44,10 @@ pub struct BenchArgs {
     /// neighbour grid, the paper's comparison; slow: try a small --size first).
     #[arg(long)]
     object_space: bool,
+    /// Also time the perspective grid renderer (Fraedrich et al. 2010; --grid-cell pixels
+    /// per column).
+    #[arg(long)]
+    perspective_grid: bool,
     /// Write the results as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -141,13 +146,15 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let spec = a.particles.spec()?;
     let per_view = tols.len() * (1 + usize::from(gpu.is_some()))
         + usize::from(!a.no_reference)
-        + usize::from(a.object_space);
+        + usize::from(a.object_space)
+        + usize::from(a.perspective_grid);
     let pb = crate::render::progress_bar(frames.len() * a.views * per_view, "renders");
     let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
     let mut gpu_memory = 0u64;
     let mut reference = Runs::default();
     let mut object = Runs::default();
+    let mut perspective = Runs::default();
     let mut setup = None;
     let mut particles_n = 0;
     let mut surface_ms: Vec<f64> = Vec::new();
@@ -182,6 +189,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 let (_, s) = render_object_space(&particles, &cam, tf, &base)
                     .with_context(|| format!("rendering {}", file.display()))?;
                 object.add(&s);
+                pb.inc(1);
+            }
+            if a.perspective_grid {
+                let cell = a.sampling.grid_cell;
+                let (_, s) = render_perspective_grid(&particles, &cam, tf, &base, cell)
+                    .with_context(|| format!("rendering {}", file.display()))?;
+                perspective.add(&s);
                 pb.inc(1);
             }
             let mut off_img: Option<Image> = None;
@@ -270,6 +284,15 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "object-space",
             &object,
             "grid",
+            off_total,
+        )?);
+    }
+    if a.perspective_grid {
+        rows.push(baseline_row(
+            "persp-grid",
+            "perspective-grid",
+            &perspective,
+            "resample",
             off_total,
         )?);
     }

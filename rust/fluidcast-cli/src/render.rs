@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
 use fluidcast_io::Input;
-use fluidcast_render::{render_reference, RenderParams, RenderStats};
+use fluidcast_render::{render_perspective_grid, render_reference, RenderParams, RenderStats};
 use fluidcast_sph::{ParticleSpec, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -59,19 +59,20 @@ pub struct RenderArgs {
     aovs: bool,
 }
 
-/// Renders one frame with the chosen renderer: the reference renderer, or the adaptive one
-/// on the opened backend.
+/// Renders one frame with the chosen renderer: the reference renderer, the perspective grid
+/// (`cell` pixels per column), or the adaptive one on the opened backend.
 pub fn render_frame(
     particles: &Particles,
     surface: Option<&[bool]>,
     camera: &Camera,
     tf: &TransferFunction,
     params: &RenderParams,
-    mode: Mode,
+    (mode, cell): (Mode, u32),
     renderer: &Renderer,
 ) -> Result<(Image, RenderStats)> {
     Ok(match mode {
         Mode::Reference => render_reference(particles, camera, tf, params)?,
+        Mode::PerspectiveGrid => render_perspective_grid(particles, camera, tf, params, cell)?,
         Mode::Adaptive => {
             let r = renderer.render(particles, surface, camera, tf, params)?;
             (r.image, r.stats)
@@ -83,10 +84,10 @@ pub fn render_frame(
 /// says where frames render.
 pub fn open_backend(s: &SamplingArgs, mode: Mode) -> Result<Renderer> {
     let r = match (s.backend, mode) {
-        (Backend::Gpu, Mode::Reference) => {
-            bail!("--backend gpu renders the adaptive mode only (drop --mode reference)")
+        (Backend::Gpu, Mode::Reference | Mode::PerspectiveGrid) => {
+            bail!("--backend gpu renders the adaptive mode only (drop --mode)")
         }
-        (_, Mode::Reference) => Renderer::cpu(),
+        (_, Mode::Reference | Mode::PerspectiveGrid) => Renderer::cpu(),
         (b, Mode::Adaptive) => without_wayland_noise(|| Renderer::open(b, s.adapter.as_deref()))
             .with_context(|| format!("--backend {b}"))?,
     };
@@ -363,7 +364,7 @@ fn report_frame(out: &Path, stats: &RenderStats) {
     let total: f64 = stats
         .stages
         .iter()
-        .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "raycast"))
+        .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "resample" | "raycast"))
         .map(|(_, v)| v)
         .sum();
     eprintln!(
@@ -466,7 +467,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         };
         params.surfaces = a.surface.surfaces(array, iso_values)?;
-        let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, mode, &renderer)
+        let how = (mode, a.sampling.grid_cell);
+        let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, how, &renderer)
             .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));

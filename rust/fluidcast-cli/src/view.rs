@@ -61,6 +61,10 @@ pub enum Mode {
     Adaptive,
     /// The reference renderer (every particle of a tile scattered into every ray).
     Reference,
+    /// The perspective grid of Fraedrich et al. 2010: particles resampled into a
+    /// view-aligned grid (one column per --grid-cell pixels, logarithmic depth slices), slab
+    /// by slab, then ray marched with bilinear interpolation.
+    PerspectiveGrid,
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -103,6 +107,10 @@ pub struct SamplingArgs {
     /// full-rate rendering by more than E_I.
     #[arg(long)]
     pub strict: bool,
+    /// --mode perspective-grid: pixels per grid column along each side (1 = a column per
+    /// pixel, the reference's samples; 2 casts a quarter of the columns and interpolates).
+    #[arg(long, default_value_t = 1)]
+    pub grid_cell: u32,
 }
 
 /// Parses `off` or a tolerance in [0, 1].

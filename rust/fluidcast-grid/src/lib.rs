@@ -234,7 +234,13 @@ pub struct Ray {
 impl Ray {
     /// The ray through the centre of pixel (i, j), j = 0 the top row.
     pub fn through_pixel(frame: &ViewFrame, i: u32, j: u32) -> Ray {
-        let (x, y) = frame.ndc(i as f64, j as f64);
+        Ray::through_point(frame, i as f64 + 0.5, j as f64 + 0.5)
+    }
+
+    /// The ray through image point (x, y) in pixel units from the top-left corner (the
+    /// centre of pixel (i, j) is (i + ½, j + ½)).
+    pub fn through_point(frame: &ViewFrame, x: f64, y: f64) -> Ray {
+        let (x, y) = frame.ndc(x - 0.5, y - 0.5);
         let (o, d) = match frame.parallel {
             Some(s) => ([x * s * frame.aspect, y * s, 0.0], [0.0, 0.0, 1.0]),
             None => (

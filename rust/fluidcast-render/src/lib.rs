@@ -20,6 +20,7 @@
 mod adaptive;
 mod crop;
 mod object_space;
+mod perspective;
 mod raycast;
 mod reference;
 mod span;
@@ -36,6 +37,7 @@ pub use crop::crop_to_box;
 pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
+pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 
@@ -169,6 +171,8 @@ pub enum RenderError {
     CropBox([f64; 3], [f64; 3]),
     #[error("{0} holds NaN or a negative depth")]
     DepthLimitValue(&'static str),
+    #[error("perspective grid cell {0} pixels: must be 1..={max}", max = perspective::MAX_CELL)]
+    GridCell(u32),
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
 }

@@ -524,47 +524,72 @@ impl Walk<'_> {
 
     /// Shades and composites the surface at depth `z` (`rising`: the field grows past it).
     fn surface(&self, z: f64, rising: bool, out: &mut SurfaceRay) {
-        let comp = &mut out.comp;
-        if z >= comp.limit {
-            comp.done = true; // behind opaque geometry or past the ray's region
+        if z >= out.comp.limit || z <= out.comp.near {
+            out.composite_outside(z);
             return;
         }
-        if z <= comp.near {
-            return; // in front of the ray's region
-        }
-        let c = self.caster;
         let pt = self.point(z, true);
-        let g = pt.gradient(self.pick);
+        let hit = Hit {
+            z,
+            gradient: pt.gradient(self.pick),
+            rising,
+            rendered: pt.rendered(self.caster.params.field),
+        };
+        self.caster.shade(self.ray, &hit, out);
+    }
+}
+
+/// A surface point on a ray: its view depth, the iso field's view-space gradient there,
+/// whether the field grows past it, and the rendered field's value (for the colour map).
+pub(crate) struct Hit {
+    pub z: f64,
+    pub gradient: [f64; 3],
+    pub rising: bool,
+    pub rendered: Option<f64>,
+}
+
+impl SurfaceRay {
+    /// A surface at depth `z` outside the ray's composited range: past its limit the ray is
+    /// done; in front of its start nothing happens.
+    pub fn composite_outside(&mut self, z: f64) {
+        if z >= self.comp.limit {
+            self.comp.done = true; // behind opaque geometry or past the ray's region
+        }
+    }
+}
+
+impl SurfaceCaster<'_> {
+    /// Lights `hit` on `ray` (normal facing back along the ray, in world space) and
+    /// composites it; the first one composited is the ray's surface (Z and normal).
+    pub fn shade(&self, ray: &Ray, hit: &Hit, out: &mut SurfaceRay) {
+        let (g, d) = (hit.gradient, ray.d);
         let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-        let d = self.ray.d;
         let n_view = if len > 0.0 {
-            let s = if rising { -1.0 / len } else { 1.0 / len };
+            let s = if hit.rising { -1.0 / len } else { 1.0 / len };
             g.map(|x| x * s)
         } else {
-            d.map(|x| -x / self.ray.dlen)
+            d.map(|x| -x / ray.dlen)
         };
-        let f = c.frame;
+        let f = self.frame;
         let world = |v: [f64; 3]| (f.right * v[0] + f.up * v[1] + f.forward * v[2]).to_array();
         let n = world(n_view);
-        let to_eye = world(d.map(|x| -x / self.ray.dlen));
-        let base = match c.surfaces.colour {
+        let to_eye = world(d.map(|x| -x / ray.dlen));
+        let base = match self.surfaces.colour {
             Some(rgb) => rgb,
-            None => pt
-                .rendered(c.params.field)
-                .map_or([0.8; 3], |q| c.tf.eval(q).0),
+            None => hit.rendered.map_or([0.8; 3], |q| self.tf.eval(q).0),
         };
-        let rgb = c
+        let rgb = self
             .surfaces
             .lighting
             .shade(base, n, to_eye, f.forward.to_array());
-        let a = c.surfaces.opacity;
-        comp.add(
+        let a = self.surfaces.opacity;
+        out.comp.add(
             [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
-            (z, z),
-            c.params.min_transmittance,
+            (hit.z, hit.z),
+            self.params.min_transmittance,
         );
         if out.first.is_none() {
-            out.first = Some((z as f32, n.map(|x| x as f32)));
+            out.first = Some((hit.z as f32, n.map(|x| x as f32)));
         }
     }
 }
