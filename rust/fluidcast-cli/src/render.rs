@@ -422,13 +422,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut params = a.sampling.params(&a.view, &a.particles)?;
     let array = a.particles.array.as_deref();
     a.surface.surfaces(array, None)?; // the options' own errors, before reading
-    let mode = a.sampling.mode(a.surface.on());
-    if a.surface.on() {
+    params.volume_lighting = a.surface.volume_lighting()?;
+    let lit = a.surface.on() || a.surface.shade_volume;
+    let mode = a.sampling.mode(lit);
+    if lit {
+        let what = if a.surface.on() {
+            "--iso"
+        } else {
+            "--shade-volume"
+        };
         if a.sampling.backend == Backend::Gpu {
-            bail!("--iso: the GPU backend does not draw iso-surfaces yet; drop --backend gpu (surfaces render on the CPU)");
+            bail!("{what}: the GPU backend does not draw iso-surfaces or a shaded volume yet; drop --backend gpu (they render on the CPU)");
         }
         if a.sampling.mode.is_none() {
-            eprintln!("note: --iso: rendering with the reference ray caster (--mode reference); the adaptive renderer does not draw surfaces yet");
+            eprintln!("note: {what}: rendering with the reference ray caster (--mode reference); the adaptive renderer does not draw surfaces or a shaded volume yet");
         }
     }
     let recipe = Recipe {

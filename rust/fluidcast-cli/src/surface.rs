@@ -32,6 +32,12 @@ pub struct SurfaceArgs {
     /// behind a translucent one.
     #[arg(long)]
     pub volume: bool,
+    /// Shaded volume rendering: light every volume sample (--ambient, --diffuse, --specular,
+    /// --specular-power, --light) with the rendered field's analytic gradient as its normal,
+    /// two-sided as VTK's volume shading. Rendered by the reference ray caster (the default
+    /// --mode with it); slower than the plain volume (a gradient per visible sample).
+    #[arg(long)]
+    pub shade_volume: bool,
     /// Light the surfaces (Blinn–Phong with --ambient/--diffuse/--specular); `off`: flat
     /// colour.
     #[arg(long, default_value = "on")]
@@ -41,16 +47,16 @@ pub struct SurfaceArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub light: Option<String>,
     /// Ambient coefficient (vtkVolumeProperty's default).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_hyphen_values = true)]
     pub ambient: f64,
     /// Diffuse coefficient.
-    #[arg(long, default_value_t = 0.7)]
+    #[arg(long, default_value_t = 0.7, allow_hyphen_values = true)]
     pub diffuse: f64,
     /// Specular coefficient.
-    #[arg(long, default_value_t = 0.2)]
+    #[arg(long, default_value_t = 0.2, allow_hyphen_values = true)]
     pub specular: f64,
     /// Specular power (shininess).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub specular_power: f64,
 }
 
@@ -78,6 +84,30 @@ fn triple(s: &str, what: &str) -> Result<[f64; 3]> {
 }
 
 impl SurfaceArgs {
+    /// The lighting the options describe (for surfaces with --shading on, and the volume
+    /// with --shade-volume).
+    fn lighting(&self) -> Result<Lighting> {
+        let lighting = Lighting {
+            ambient: self.ambient,
+            diffuse: self.diffuse,
+            specular: self.specular,
+            specular_power: self.specular_power,
+            light: match &self.light {
+                Some(l) => Light::Directional(triple(l, "--light")?),
+                None => Light::Headlight,
+            },
+        };
+        lighting
+            .validate()
+            .context("--ambient/--diffuse/--specular/--light")?;
+        Ok(lighting)
+    }
+
+    /// The volume's lighting with --shade-volume.
+    pub fn volume_lighting(&self) -> Result<Option<Lighting>> {
+        self.shade_volume.then(|| self.lighting()).transpose()
+    }
+
     /// Whether surfaces were asked for.
     pub fn on(&self) -> bool {
         !self.iso.is_empty()
@@ -120,16 +150,7 @@ impl SurfaceArgs {
             IsoSource::Other(_) => IsoField::Attribute(other),
         };
         let lighting = match self.shading.to_ascii_lowercase().as_str() {
-            "on" => Lighting {
-                ambient: self.ambient,
-                diffuse: self.diffuse,
-                specular: self.specular,
-                specular_power: self.specular_power,
-                light: match &self.light {
-                    Some(l) => Light::Directional(triple(l, "--light")?),
-                    None => Light::Headlight,
-                },
-            },
+            "on" => self.lighting()?,
             "off" => Lighting {
                 ambient: 1.0,
                 diffuse: 0.0,

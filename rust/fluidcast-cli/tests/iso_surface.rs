@@ -173,7 +173,12 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
             String::from_utf8_lossy(&o.stderr).to_string(),
         )
     };
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 8] = [
+        (
+            &["--shade-volume", "--mode", "adaptive"],
+            "adaptive grid renderer does not draw a shaded volume",
+        ),
+        (&["--shade-volume", "--diffuse", "-1"], "diffuse -1"),
         (
             &["--iso", "0.5", "--mode", "adaptive"],
             "adaptive grid renderer does not draw iso-surfaces",
@@ -192,6 +197,8 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
         assert_eq!(code, Some(1), "{extra:?}: {err}");
         assert!(err.contains(want), "{extra:?}: {err}");
     }
+    let (code, err) = run(&["--shade-volume", "--array", "velocity", "--light", "1,0,0"]);
+    assert_eq!(code, Some(0), "{err}");
     let (code, err) = run(&[
         "--iso",
         "0.5,0.8",

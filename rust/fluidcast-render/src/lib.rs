@@ -42,7 +42,7 @@ pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 
 use fluidcast_sph::{FieldKind, Kernel};
-use fluidcast_view::CameraError;
+use fluidcast_view::{CameraError, Lighting};
 
 /// Largest image side and pixel count the renderer accepts.
 pub const MAX_SIDE: u32 = 16384;
@@ -90,6 +90,11 @@ pub struct RenderParams {
     /// `None`: the emission–absorption volume alone. Drawn by [`render_reference`]; the other
     /// renderers refuse them ([`SurfaceError::Unsupported`]).
     pub surfaces: Option<Arc<Surfaces>>,
+    /// Shaded volume rendering: each volume sample's colour lit with these coefficients and
+    /// light, its normal the analytic gradient of the rendered field there (facing the eye).
+    /// `None`: emission–absorption as the transfer function gives it. Drawn by
+    /// [`render_reference`]; the other renderers refuse it.
+    pub volume_lighting: Option<Lighting>,
 }
 
 impl RenderParams {
@@ -146,6 +151,7 @@ impl Default for RenderParams {
             depth_near: None,
             support_depths: None,
             surfaces: None,
+            volume_lighting: None,
         }
     }
 }
@@ -173,6 +179,8 @@ pub enum RenderError {
     DepthLimitValue(&'static str),
     #[error("perspective grid cell {0} pixels: must be 1..={max}", max = perspective::MAX_CELL)]
     GridCell(u32),
+    #[error("{0} does not draw a shaded volume yet; render it with the reference renderer (CLI: --mode reference, which --shade-volume chooses by default)")]
+    VolumeLighting(&'static str),
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
 }
@@ -225,10 +233,13 @@ pub fn ms(t: Instant) -> f64 {
 /// Refuses iso-surfaces in a renderer (`what`, e.g. "the adaptive grid renderer") that does
 /// not draw them yet.
 pub fn refuse_surfaces(params: &RenderParams, what: &'static str) -> Result<(), RenderError> {
-    match params.surfaces {
-        Some(_) => Err(SurfaceError::Unsupported(what).into()),
-        None => Ok(()),
+    if params.surfaces.is_some() {
+        return Err(SurfaceError::Unsupported(what).into());
     }
+    if params.volume_lighting.is_some() {
+        return Err(RenderError::VolumeLighting(what));
+    }
+    Ok(())
 }
 
 /// Checks the image size and the parameters every renderer shares (the GPU path too).

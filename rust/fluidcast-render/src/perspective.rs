@@ -181,6 +181,9 @@ pub fn render_perspective_grid(
     if !(1..=MAX_CELL).contains(&cell) {
         return Err(RenderError::GridCell(cell));
     }
+    if params.volume_lighting.is_some() {
+        return Err(RenderError::VolumeLighting("the perspective grid renderer"));
+    }
     if let Some(s) = &params.surfaces {
         s.validate(particles.len())?;
         if matches!(s.field, IsoField::Attribute(Some(_))) {

@@ -158,7 +158,22 @@ impl Compositor {
     /// (`dlen` world units per unit of view depth along this ray); a step that reaches past
     /// the limit or starts before `near` is cut there.
     #[inline]
-    pub fn sample(&mut self, tf: &TfLookup, q: f64, (z0, z1): (f64, f64), dlen: f64, min_t: f64) {
+    pub fn sample(&mut self, tf: &TfLookup, q: f64, z: (f64, f64), dlen: f64, min_t: f64) {
+        self.sample_lit(tf, q, z, dlen, min_t, |rgb| rgb);
+    }
+
+    /// [`Compositor::sample`] with the transfer function's colour passed through `light`
+    /// (called only for a sample that is composited and not fully transparent).
+    #[inline]
+    pub fn sample_lit(
+        &mut self,
+        tf: &TfLookup,
+        q: f64,
+        (z0, z1): (f64, f64),
+        dlen: f64,
+        min_t: f64,
+        light: impl FnOnce([f64; 3]) -> [f64; 3],
+    ) {
         if z0 >= self.limit {
             self.done = true;
             return;
@@ -172,6 +187,7 @@ impl Compositor {
         let z1 = z1.min(self.limit);
         let a = tf.tf.step_alpha(alpha, (z1 - z0) * dlen);
         self.samples += 1;
+        let rgb = if a > 0.0 { light(rgb) } else { rgb };
         self.add(
             [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
             (z0, z1),

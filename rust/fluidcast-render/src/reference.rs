@@ -8,7 +8,7 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
-use crate::surface::{IsoField, SurfaceCaster, SurfaceScratch};
+use crate::surface::{IsoField, SurfaceCaster, SurfaceError, SurfaceScratch, Surfaces};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 const TILE: u32 = 8;
@@ -42,12 +42,18 @@ impl<'a> TileCaster<'a> {
         frame: &'a ViewFrame,
         tf: &'a TfLookup<'a>,
         depths: &'a SampleDepths,
-        particles: &'a Particles,
+        (particles, lit_volume): (&'a Particles, &'a Surfaces),
     ) -> Result<TileCaster<'a>, RenderError> {
-        let surfaces = params.surfaces.as_deref();
-        if let Some(s) = surfaces {
+        if let Some(s) = params.surfaces.as_deref() {
             s.validate(particles.len())?;
         }
+        if let Some(l) = &params.volume_lighting {
+            l.validate().map_err(SurfaceError::from)?;
+        }
+        // A shaded volume is cast as surfaces are (each ray's passes at hand), with no iso
+        // value when none is drawn.
+        let lit = params.volume_lighting.is_some().then_some(lit_volume);
+        let surfaces = params.surfaces.as_deref().or(lit);
         let iso_values = match surfaces.map(|s| &s.field) {
             Some(IsoField::Attribute(Some(v))) => Some(&v[..]),
             _ => None,
@@ -109,7 +115,13 @@ impl<'a> TileCaster<'a> {
                 let ray = Ray::through_pixel(self.frame, i, j);
                 let r = surfaces.cast(&ray, &local, &mut scratch, &mut sums, (i, j));
                 samples += r.comp.samples;
-                let (rgba, _) = r.comp.pixel(); // Z: the first surface, not the ½-opacity depth
+                let (rgba, half) = r.comp.pixel();
+                // Z: the first surface (with surfaces), else the ½-opacity depth.
+                let none = if self.params.surfaces.is_some() {
+                    f32::INFINITY
+                } else {
+                    half
+                };
                 out.push(match r.first {
                     Some((depth, normal)) => Pixel {
                         rgba,
@@ -118,7 +130,7 @@ impl<'a> TileCaster<'a> {
                     },
                     None => Pixel {
                         rgba,
-                        depth: f32::INFINITY,
+                        depth: none,
                         normal: [0.0; 3],
                     },
                 });
@@ -269,7 +281,12 @@ pub fn render_reference(
     // Ray cast tile by tile.
     let t1 = Instant::now();
     let tf = &TfLookup::new(tf);
-    let caster = TileCaster::new(params, &frame, tf, &depths, particles)?;
+    let lit_volume = Surfaces {
+        values: Vec::new(),
+        volume: true,
+        ..Default::default()
+    };
+    let caster = TileCaster::new(params, &frame, tf, &depths, (particles, &lit_volume))?;
     let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()

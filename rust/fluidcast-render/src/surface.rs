@@ -501,10 +501,11 @@ impl Walk<'_> {
                 .then(|| sums.value(k, params.field))
                 .flatten();
             let mut z0 = zs[k];
+            let light = |rgb| self.lit(zs[k], rgb);
             for &(z, rising) in &hits {
                 if let Some(q) = volume {
                     out.comp
-                        .sample(self.caster.tf, q, (z0, z), self.ray.dlen, min_t);
+                        .sample_lit(self.caster.tf, q, (z0, z), self.ray.dlen, min_t, light);
                 }
                 z0 = z;
                 self.surface(z, rising, out);
@@ -513,13 +514,39 @@ impl Walk<'_> {
                 }
             }
             if let Some(q) = volume {
+                let z = (z0, zs[k + 1]);
                 out.comp
-                    .sample(self.caster.tf, q, (z0, zs[k + 1]), self.ray.dlen, min_t);
+                    .sample_lit(self.caster.tf, q, z, self.ray.dlen, min_t, light);
             }
             if out.comp.done {
                 return;
             }
         }
+    }
+
+    /// A volume sample's colour at depth `z` lit as [`RenderParams::volume_lighting`] says,
+    /// its normal the analytic gradient of the rendered field there (unlit without).
+    fn lit(&self, z: f64, rgb: [f64; 3]) -> [f64; 3] {
+        let Some(lighting) = &self.caster.params.volume_lighting else {
+            return rgb;
+        };
+        let pick = match self.caster.params.field {
+            FieldKind::Csph => (RENDERED, true),
+            FieldKind::Sph => (RENDERED, false),
+            FieldKind::Density => (DENSITY, false),
+        };
+        let g = self.point(z, true).gradient(pick);
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let d = self.ray.d.map(|x| x / self.ray.dlen);
+        let n_view = if len > 0.0 {
+            g.map(|x| -x / len)
+        } else {
+            d.map(|x| -x)
+        };
+        let f = self.caster.frame;
+        let world = |v: [f64; 3]| (f.right * v[0] + f.up * v[1] + f.forward * v[2]).to_array();
+        let to_eye = world(d.map(|x| -x));
+        lighting.shade_volume(rgb, world(n_view), to_eye, f.forward.to_array())
     }
 
     /// Shades and composites the surface at depth `z` (`rising`: the field grows past it).

@@ -512,3 +512,82 @@ fn a_sheet_thinner_than_a_depth_sample_is_not_missed() {
         "rays through the sheet that show no surface"
     );
 }
+
+/// Shaded volume rendering: a lattice block whose attribute is x + y has the CSPH gradient
+/// (1, 1, 0) inside, across the view (along −z, parallel projection). Volume lighting is
+/// two-sided (VTK's |n·l|, |n·h|): a directional light along ±(1, 1, 0) meets every sample's
+/// normal head on, colour × (ambient + diffuse) plus the white highlight 0.2 (n·h)^10 with
+/// n·h = cos 45 degrees, times the sample's opacity, which lighting leaves alone; a light
+/// along (1, −1, 0) or the headlight (along z) is perpendicular to it and leaves the
+/// ambient part (0.1) and, for the headlight, no highlight either (n·h = 0). So an interior
+/// pixel's colour is 0.8 × the unlit one's + 0.2 c^10 × its alpha, or 0.1 × it: a gradient
+/// along the wrong axis swaps the cases. Measured within 0.0005 and 0.019 of the unlit colour
+/// (the perpendicular cases see the CSPH gradient's small deviations from (1, 1, 0) between
+/// lattice points); allowed 0.03.
+#[test]
+fn shaded_volume_lights_samples_by_the_field_gradient() {
+    let s = 0.05f32;
+    let mut p = Particles::default();
+    for i in -10..=10 {
+        for j in -10..=10 {
+            for k in -10..=10 {
+                let x = [i as f32 * s, j as f32 * s, k as f32 * s];
+                p.positions.push(x);
+                p.radii.push(2.5 * s);
+                p.volumes.push(s * s * s);
+                p.masses.push(1.0);
+                p.values.push(x[0] + x[1]);
+            }
+        }
+    }
+    let mut cam = Camera::default();
+    cam.reset([-0.6, -0.6, -0.6], [0.6, 0.6, 0.6]);
+    cam.parallel_projection = true;
+    let mut tf = tf();
+    tf.unit_distance = 2.0;
+    let base = RenderParams {
+        width: 48,
+        height: 48,
+        kernel: Kernel::WendlandC2,
+        ..Default::default()
+    };
+    let (unlit, _) = render_reference(&p, &cam, &tf, &base).unwrap();
+    let c = 0.5f64.sqrt();
+    let mut lit_params = base.clone();
+    let spec = 0.2 * c.powi(10);
+    use fluidcast_view::Light::{Directional, Headlight};
+    let cases = [
+        (Directional([-1.0, -1.0, 0.0]), 0.8, spec),
+        (Directional([1.0, 1.0, 0.0]), 0.8, spec),
+        (Directional([1.0, -1.0, 0.0]), 0.1, 0.0),
+        (Headlight, 0.1, 0.0),
+    ];
+    for (light, diffuse, specular) in cases {
+        lit_params.volume_lighting = Some(fluidcast_view::Lighting {
+            light,
+            ..Default::default()
+        });
+        let (lit, _) = render_reference(&p, &cam, &tf, &lit_params).unwrap();
+        let (mut checked, mut worst) = (0, 0.0f64);
+        for j in 16..32 {
+            for i in 16..32 {
+                let k = unlit.index(i, j);
+                let (u, l) = (unlit.rgba[k], lit.rgba[k]);
+                assert!(u[3] > 0.05, "{i},{j}: the block is there");
+                assert_eq!(u[3], l[3], "lighting leaves opacity alone");
+                for ch in 0..3 {
+                    let want = diffuse * u[ch] as f64 + specular * u[3] as f64;
+                    worst = worst.max((l[ch] as f64 - want).abs() / u[ch] as f64);
+                }
+                checked += 1;
+            }
+        }
+        eprintln!("shaded volume, {light:?}: {checked} interior pixels within {worst:.4} of the analytic lighting (relative to the unlit colour)");
+        assert!(worst < 0.03, "lit colour off by {worst}");
+    }
+    let e = fluidcast_render::render_adaptive(&p, None, &cam, &tf, &lit_params).unwrap_err();
+    assert!(
+        e.to_string().contains("does not draw a shaded volume"),
+        "{e}"
+    );
+}

@@ -91,10 +91,7 @@ impl Lighting {
         } else {
             n
         };
-        let l = match self.light {
-            Light::Headlight => forward.map(|x| -x),
-            Light::Directional(d) => normalise(d),
-        };
+        let l = self.direction(forward);
         let diffuse = self.diffuse * dot(n, l).max(0.0);
         let h = normalise([l[0] + to_eye[0], l[1] + to_eye[1], l[2] + to_eye[2]]);
         let nh = dot(n, h).max(0.0);
@@ -104,6 +101,31 @@ impl Lighting {
             0.0 // no highlight on the side facing away from the light
         };
         c.map(|x| (self.ambient + diffuse) * x + specular)
+    }
+
+    /// A volume sample's colour lit as VTK's volume shaders light it with two-sided lighting:
+    /// `|n·l|` and `|n·h|`, so a gradient and its opposite light alike (a sample's normal has
+    /// no front: the field may grow toward the eye or away from it).
+    pub fn shade_volume(
+        &self,
+        c: [f64; 3],
+        n: [f64; 3],
+        to_eye: [f64; 3],
+        forward: [f64; 3],
+    ) -> [f64; 3] {
+        let l = self.direction(forward);
+        let diffuse = self.diffuse * dot(n, l).abs();
+        let h = normalise([l[0] + to_eye[0], l[1] + to_eye[1], l[2] + to_eye[2]]);
+        let specular = self.specular * dot(n, h).abs().powf(self.specular_power);
+        c.map(|x| (self.ambient + diffuse) * x + specular)
+    }
+
+    /// Unit direction from the scene toward the light for a camera looking along `forward`.
+    fn direction(&self, forward: [f64; 3]) -> [f64; 3] {
+        match self.light {
+            Light::Headlight => forward.map(|x| -x),
+            Light::Directional(d) => normalise(d),
+        }
     }
 }
 
@@ -137,6 +159,22 @@ mod tests {
         let s = l.shade([1.0; 3], n, EYE, FWD);
         let want = 0.1 + 0.7 * 0.5 + 0.2 * 0.5f64.powf(10.0);
         assert!((s[0] - want).abs() < 1e-12, "{s:?} vs {want}");
+    }
+
+    /// Volume lighting is two-sided by absolute values: a normal and its opposite light alike,
+    /// head on under the headlight as a surface would.
+    #[test]
+    fn volume_lighting_is_two_sided() {
+        let l = Lighting::default();
+        let c = [0.5, 0.25, 1.0];
+        let n = [0.6, 0.0, 0.8];
+        let a = l.shade_volume(c, n, EYE, FWD);
+        assert_eq!(a, l.shade_volume(c, n.map(|x| -x), EYE, FWD));
+        let want = |k: usize| (0.1 + 0.7 * 0.8) * c[k] + 0.2 * 0.8f64.powf(10.0);
+        for (k, got) in a.iter().enumerate() {
+            assert!((got - want(k)).abs() < 1e-12, "{a:?}");
+        }
+        assert_eq!(l.shade_volume(c, EYE, EYE, FWD), l.shade(c, EYE, EYE, FWD));
     }
 
     /// A directional light lights what faces it and leaves what faces away at ambient, with
