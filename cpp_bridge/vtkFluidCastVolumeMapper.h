@@ -145,7 +145,9 @@ public:
    * IsoSurfaceField: "colour" (default: Σ V W with V = m/ρ, about 1 inside the fluid, so 0.5
    * is the free surface), "density" (Σ m W) or a point array's name (its CSPH field).
    * IsoSurfaceOpacity in (0, 1]; IsoSurfaceWithVolume also composites the volume, in depth
-   * order with the surfaces. Surfaces render on the CPU whatever the Backend.
+   * order with the surfaces. Surfaces render on the CPU whatever the Backend. In composite
+   * mode the volume is not shaded (the property's Shade is read for surfaces only; shaded
+   * volume rendering is the CLI's and library's --shade-volume for now).
    */
   vtkSetMacro(BlendMode, int);
   vtkGetMacro(BlendMode, int);
