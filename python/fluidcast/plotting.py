@@ -208,7 +208,11 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
                   support_radius: float | None = None, radius_array: str | None = None,
                   radius_scale: float = 1.0, kernel: str = "cubic",
                   error_tolerance: float = 0.004, backend: str = "auto",
-                  adapter: str | None = None, show_scalar_bar: bool | None = None,
+                  adapter: str | None = None, isosurfaces=None,
+                  isosurface_field: str = "colour", isosurface_opacity: float = 1.0,
+                  isosurface_with_volume: bool = False, shade: bool = True,
+                  ambient: float = 0.1, diffuse: float = 0.7, specular: float = 0.2,
+                  specular_power: float = 10.0, show_scalar_bar: bool | None = None,
                   scalar_bar_args: dict | None = None, name: str | None = None,
                   reset_camera: bool | None = None, render: bool = True) -> pv.Volume:
     """Adds SPH particles to ``plotter`` as a volume rendered by fluidcast, and returns the
@@ -239,6 +243,14 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
       (0 renders at full rate).
     * ``backend`` "auto" (a hardware GPU if there is one, else the CPU), "cpu" or "gpu";
       ``adapter``: a GPU adapter's name (part of it).
+    * ``isosurfaces``: values (e.g. ``[0.5]``) of ``isosurface_field`` — "colour" (Σ V W,
+      V = m/ρ: about 1 inside the fluid, so 0.5 is the free surface), "density" or a point
+      array's name — drawn as surfaces coloured by the colour map instead of the volume
+      (``isosurface_with_volume``: the volume too, in depth order), with
+      ``isosurface_opacity``, lit when ``shade`` with ``ambient``, ``diffuse``, ``specular``
+      and ``specular_power`` (pyvista's ``add_volume`` names; a headlight). They render on the
+      CPU (the mapper's iso-surface blend mode and the property's iso values, as VTK's GPU
+      mapper takes them).
 
     Bad input (no points, a missing array, NaN radii, ...) raises ``ValueError`` with the
     mapper's message and adds nothing; the mapper reports later problems (data changed to
@@ -267,7 +279,18 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
         opacity_unit_distance = mesh.length / np.cbrt(mesh.n_points)
     prop.SetScalarOpacityUnitDistance(opacity_unit_distance)
     prop.SetInterpolationTypeToLinear()
-    prop.ShadeOff()
+    prop.SetShade(bool(shade))
+    prop.SetAmbient(ambient)
+    prop.SetDiffuse(diffuse)
+    prop.SetSpecular(specular)
+    prop.SetSpecularPower(specular_power)
+    if isosurfaces is not None and len(isosurfaces) > 0:
+        for i, v in enumerate(np.atleast_1d(np.asarray(isosurfaces, dtype=float))):
+            prop.GetIsoSurfaceValues().SetValue(i, float(v))
+        mapper.SetBlendModeToIsoSurface()
+        mapper.SetIsoSurfaceField(isosurface_field)
+        mapper.SetIsoSurfaceOpacity(isosurface_opacity)
+        mapper.SetIsoSurfaceWithVolume(bool(isosurface_with_volume))
 
     volume = pv.Volume()
     volume.mapper = mapper

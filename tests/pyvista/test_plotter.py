@@ -124,6 +124,24 @@ def test_plotter_with_outline_matches_cli(ddb, tmp_path):
     assert covered > 0.9, f"only {covered:.0%} of the outline behind the particles is covered"
 
 
+def test_isosurface_matches_cli(ddb, tmp_path):
+    """``isosurfaces=[0.5]`` draws the free surface the CLI's ``--iso 0.5`` draws (same
+    lighting coefficients, here away from their defaults), within 2/255; it is not the
+    volume."""
+    path, mesh = ddb
+    p = plotter()
+    volume = add(p, mesh, isosurfaces=[0.5], specular=0.4, specular_power=20)
+    p.view_isometric()
+    img = p.screenshot(return_img=True)
+    assert volume.mapper.GetLastError() == ""
+    cli = cli_image(p, volume, path, tmp_path, "iso", "--iso", "0.5", "--specular", "0.4",
+                    "--specular-power", "20")
+    assert drawn(cli).sum() > SIZE[0] * SIZE[1] // 20, "the CLI drew almost nothing"
+    assert max_diff(img, cli) <= ALLOWED
+    plain = cli_image(p, volume, path, tmp_path, "volume")
+    assert max_diff(img, plain) > 50, "the plotter drew the volume, not the surface"
+
+
 @pytest.mark.parametrize("off_screen", [True, False], ids=["offscreen", "window"])
 def test_rotating_the_camera_renders_the_new_view(ddb, tmp_path, off_screen):
     """After the plotter's camera moves, the next render is the CLI's image for the new
