@@ -13,7 +13,7 @@ use std::str::FromStr;
 
 pub use fluidcast_gpu::{list_adapters, AdapterChoice, Gpu, GpuError, ADAPTER_ENV};
 pub use fluidcast_render::Rendered;
-use fluidcast_render::{render_adaptive, RenderError, RenderParams};
+use fluidcast_render::{render_adaptive, render_over_surfaces, RenderError, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -114,8 +114,33 @@ impl Renderer {
         }
     }
 
-    /// Renders one frame with the adaptive renderer, on this backend's device.
+    /// Renders one frame with the adaptive renderer, on this backend's device. Iso-surfaces
+    /// (opaque over the volume) are found on the CPU by the reference caster and stop the
+    /// adaptive volume as opaque geometry does ([`render_over_surfaces`]).
     pub fn render(
+        &self,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        camera: &Camera,
+        tf: &TransferFunction,
+        params: &RenderParams,
+    ) -> Result<Rendered, BackendError> {
+        if params.surfaces.is_none() {
+            return self.render_volume(particles, surface, camera, tf, params);
+        }
+        let what = match self.gpu {
+            Some(_) => "the GPU backend",
+            None => "the adaptive grid renderer",
+        };
+        let (image, stats) = render_over_surfaces(particles, camera, tf, params, what, |p| {
+            self.render_volume(particles, surface, camera, tf, p)
+                .map(|r| (r.image, r.stats))
+        })?;
+        Ok(Rendered { image, stats })
+    }
+
+    /// The adaptive volume alone, on this backend's device.
+    fn render_volume(
         &self,
         particles: &Particles,
         surface: Option<&[bool]>,

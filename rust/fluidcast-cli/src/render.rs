@@ -423,20 +423,21 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let array = a.particles.array.as_deref();
     a.surface.surfaces(array, None)?; // the options' own errors, before reading
     params.volume_lighting = a.surface.volume_lighting()?;
-    let lit = a.surface.on() || a.surface.shade_volume;
+    let gpu = a.sampling.backend == Backend::Gpu;
+    if a.surface.shade_volume && gpu {
+        bail!("--shade-volume: the GPU backend does not draw a shaded volume yet; drop --backend gpu (it renders on the CPU)");
+    }
+    // Surfaces and the shaded volume render with the reference caster unless --mode (or
+    // --backend gpu, whose adaptive volume the surfaces then stop) says otherwise.
+    let lit = (a.surface.on() && !gpu) || a.surface.shade_volume;
     let mode = a.sampling.mode(lit);
-    if lit {
+    if lit && a.sampling.mode.is_none() {
         let what = if a.surface.on() {
             "--iso"
         } else {
             "--shade-volume"
         };
-        if a.sampling.backend == Backend::Gpu {
-            bail!("{what}: the GPU backend does not draw iso-surfaces or a shaded volume yet; drop --backend gpu (they render on the CPU)");
-        }
-        if a.sampling.mode.is_none() {
-            eprintln!("note: {what}: rendering with the reference ray caster (--mode reference); the adaptive renderer does not draw surfaces or a shaded volume yet");
-        }
+        eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
     }
     let recipe = Recipe {
         spec: &spec,

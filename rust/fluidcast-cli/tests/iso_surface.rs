@@ -180,12 +180,20 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
         ),
         (&["--shade-volume", "--diffuse", "-1"], "diffuse -1"),
         (
-            &["--iso", "0.5", "--mode", "adaptive"],
-            "adaptive grid renderer does not draw iso-surfaces",
+            &[
+                "--iso",
+                "0.5",
+                "--mode",
+                "adaptive",
+                "--volume",
+                "--iso-opacity",
+                "0.5",
+            ],
+            "adaptive grid renderer draws opaque surfaces over the volume only",
         ),
         (
-            &["--iso", "0.5", "--backend", "gpu"],
-            "GPU backend does not draw iso-surfaces",
+            &["--shade-volume", "--backend", "gpu"],
+            "GPU backend does not draw a shaded volume",
         ),
         (&["--iso", "0.5", "--iso-opacity", "0"], "opacity 0"),
         (&["--iso", "0.5", "--light", "0,0,0"], "light direction"),
@@ -198,6 +206,8 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
         assert!(err.contains(want), "{extra:?}: {err}");
     }
     let (code, err) = run(&["--shade-volume", "--array", "velocity", "--light", "1,0,0"]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, err) = run(&["--iso", "0.5", "--volume", "--mode", "adaptive"]);
     assert_eq!(code, Some(0), "{err}");
     let (code, err) = run(&[
         "--iso",

@@ -20,6 +20,7 @@
 mod adaptive;
 mod crop;
 mod object_space;
+mod overlay;
 mod perspective;
 mod raycast;
 mod reference;
@@ -37,6 +38,7 @@ pub use crop::crop_to_box;
 pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDepths};
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
+pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};

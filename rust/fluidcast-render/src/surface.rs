@@ -91,6 +91,8 @@ pub enum SurfaceError {
     AttributeLength(usize, usize),
     #[error("{0} does not draw iso-surfaces yet; render them with the reference renderer (CLI: --mode reference, which --iso chooses by default)")]
     Unsupported(&'static str),
+    #[error("{0} draws opaque surfaces over the volume only (the volume stops at the first surface); translucent surfaces with the volume render with the reference renderer (CLI: --mode reference)")]
+    Translucent(&'static str),
 }
 
 impl Surfaces {
