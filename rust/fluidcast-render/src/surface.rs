@@ -14,7 +14,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use fluidcast_grid::{within, Ray, ViewParticle};
-use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_sph::FieldKind;
 use fluidcast_view::{Lighting, LightingError, TfLookup, ViewFrame};
 
 use crate::raycast::{Compositor, Sums};
@@ -275,13 +275,18 @@ impl SurfaceCaster<'_> {
         if lo >= hi {
             return out;
         }
-        scatter_iso(scratch, ray, samples, kernel, pick.0);
-        let walk = Walk {
+        // The walk adds each pass's weights when it reaches the pass's first sample, so a ray
+        // that an opaque surface ends never sums what lies behind it.
+        scratch
+            .passes
+            .sort_unstable_by_key(|p| (p.k.start, p.k.end));
+        let mut walk = Walk {
             caster: self,
             ray,
             passes: &scratch.passes,
-            num: &scratch.num,
-            den: &scratch.den,
+            num: &mut scratch.num,
+            den: &mut scratch.den,
+            added: 0,
             pick,
         };
         walk.run(lo.saturating_sub(1)..(hi + 1).min(n), sums, &mut out);
@@ -294,30 +299,38 @@ impl SurfaceCaster<'_> {
     }
 }
 
-/// Adds every pass's iso numerator and Shepard weights at its samples.
-fn scatter_iso(s: &mut SurfaceScratch, ray: &Ray, zs: &[f64], kernel: Kernel, n: usize) {
-    for p in &s.passes {
-        for k in p.k.clone() {
-            let dz = zs[k] - p.t;
-            let w = kernel.shape((p.r2 + ray.dd * dz * dz).sqrt() * p.inv_h);
-            s.num[k] += p.w[n] * w;
-            s.den[k] += p.w[SHEPARD] * w;
-        }
-    }
-}
-
 /// One ray's walk over its samples: finds, refines, shades and composites the crossings,
 /// and the volume between them.
 struct Walk<'a> {
     caster: &'a SurfaceCaster<'a>,
     ray: &'a Ray,
+    /// The ray's passes in the order of their first sample.
     passes: &'a [Pass],
-    num: &'a [f64],
-    den: &'a [f64],
+    /// The iso field's numerator and Shepard sums at the samples, complete up to the first
+    /// sample of `passes[added]`.
+    num: &'a mut [f64],
+    den: &'a mut [f64],
+    added: usize,
     pick: (usize, bool),
 }
 
 impl Walk<'_> {
+    /// Adds the passes that reach sample `k` or an earlier one (so the sums are complete
+    /// there and at every sample before it).
+    fn sum_to(&mut self, k: usize) {
+        let (zs, kernel) = (self.caster.zs, self.caster.params.kernel);
+        let n = self.pick.0;
+        while let Some(p) = self.passes.get(self.added).filter(|p| p.k.start <= k) {
+            for s in p.k.clone() {
+                let dz = zs[s] - p.t;
+                let w = kernel.shape((p.r2 + self.ray.dd * dz * dz).sqrt() * p.inv_h);
+                self.num[s] += p.w[n] * w;
+                self.den[s] += p.w[SHEPARD] * w;
+            }
+            self.added += 1;
+        }
+    }
+
     /// The iso field at sample k (`None`: an undefined CSPH quotient).
     fn at(&self, k: usize) -> Option<f64> {
         if !self.pick.1 {
@@ -483,12 +496,13 @@ impl Walk<'_> {
     }
 
     /// Walks steps `range` front to back, compositing volume parts and surfaces.
-    fn run(&self, range: Range<usize>, sums: &Sums, out: &mut SurfaceRay) {
+    fn run(&mut self, range: Range<usize>, sums: &Sums, out: &mut SurfaceRay) {
         let (zs, params) = (self.caster.zs, self.caster.params);
         let min_t = params.min_transmittance;
         // Crossings found but not yet composited (a hidden one may lie in the next step).
         let mut pending: Vec<(f64, bool)> = Vec::new();
         for k in range {
+            self.sum_to(k + 2); // crossings to k + 1, extrema at k + 1 (its neighbour k + 2)
             if k + 1 < zs.len() - 1 {
                 self.crossings(k, &mut pending);
                 self.hidden(k + 1, &mut pending);
