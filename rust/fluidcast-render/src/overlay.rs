@@ -65,11 +65,8 @@ pub fn render_over_surfaces<E: From<RenderError>>(
         *s = [0, 1, 2, 3].map(|c| f[c] + (1.0 - f[3]) * s[c]);
     }
     image.aovs.extend(front.aovs);
-    stats = RenderStats {
-        stages: front_stats.stages.clone(),
-        samples: front_stats.samples,
-        ..front_stats
-    };
+    // The front volume's counts and stages, the surfaces' time first.
+    stats = front_stats;
     stats.stages.insert(0, ("surfaces", surfaces_ms));
     if let Some(t) = stats.stages.iter_mut().find(|s| s.0 == "total") {
         t.1 = ms(t0);

@@ -24,7 +24,9 @@ use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
 use crate::reference::RayView;
-use crate::surface::{Hit, IsoField, SurfaceCaster, SurfaceError, SurfaceRay, Surfaces};
+use crate::surface::{
+    add_normal_aovs, Hit, IsoField, SurfaceCaster, SurfaceError, SurfaceRay, Surfaces,
+};
 use crate::{ms, RenderError, RenderParams, RenderStats};
 
 /// Depth slices resampled at once.
@@ -491,18 +493,23 @@ impl March<'_> {
             return;
         };
         let z = &self.depths.z;
+        // The ends' gradients and rendered values, found once for all the values crossed.
+        let mut ends = None;
         for &value in &c.surfaces.values {
             if (fa >= value) == (fb >= value) {
                 continue;
             }
             let t = (value - fa) / (fb - fa);
-            let (ga, gb) = (self.gradient(slab, uv, s), self.gradient(slab, uv, s + 1));
-            let vol = |s| slab.lerp(false, self.layout, uv, s);
+            let ((ga, gb), (va, vb)) = *ends.get_or_insert_with(|| {
+                let vol = |s| slab.lerp(false, self.layout, uv, s);
+                let g = (self.gradient(slab, uv, s), self.gradient(slab, uv, s + 1));
+                (g, (vol(s), vol(s + 1)))
+            });
             hits.push(Hit {
                 z: z[s] + t * (z[s + 1] - z[s]),
                 gradient: [0, 1, 2].map(|a| ga[a] + t * (gb[a] - ga[a])),
                 rising: fb >= value,
-                rendered: match (vol(s), vol(s + 1)) {
+                rendered: match (va, vb) {
                     (Some(a), Some(b)) => Some(a + t * (b - a)),
                     (a, b) => a.or(b),
                 },
@@ -555,10 +562,6 @@ fn finish(image: &mut Image, stats: &mut RenderStats, rays: &[SurfaceRay], surfa
         }
     }
     if surfaces {
-        for (a, name) in ["normal_x", "normal_y", "normal_z"].into_iter().enumerate() {
-            image
-                .aovs
-                .push((name.into(), normals.iter().map(|n| n[a]).collect()));
-        }
+        add_normal_aovs(image, &normals);
     }
 }

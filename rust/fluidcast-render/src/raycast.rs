@@ -1,7 +1,7 @@
 //! The per-ray pieces both renderers share: scattering a particle into a ray's samples and
 //! front-to-back compositing.
 
-use fluidcast_grid::{within, Ray, ViewParticle};
+use fluidcast_grid::{within, Passage, Ray, ViewParticle};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::TfLookup;
 
@@ -34,7 +34,19 @@ impl Sums {
         zs: &[f64],
         kernel: Kernel,
     ) -> Option<std::ops::Range<usize>> {
-        let pass = ray.passage(p)?;
+        self.scatter_passage(ray, p, &ray.passage(p)?, zs, kernel)
+    }
+
+    /// [`Sums::scatter`] for a passage of `ray` through `p` already found.
+    #[inline]
+    pub fn scatter_passage(
+        &mut self,
+        ray: &Ray,
+        p: &ViewParticle,
+        pass: &Passage,
+        zs: &[f64],
+        kernel: Kernel,
+    ) -> Option<std::ops::Range<usize>> {
         let range = within(zs, pass.z0, pass.z1);
         if range.is_empty() {
             return None;

@@ -8,7 +8,9 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
 use crate::raycast::{Compositor, Sums};
-use crate::surface::{IsoField, SurfaceCaster, SurfaceError, SurfaceScratch, Surfaces};
+use crate::surface::{
+    add_normal_aovs, IsoField, SurfaceCaster, SurfaceError, SurfaceScratch, Surfaces,
+};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 const TILE: u32 = 8;
@@ -319,11 +321,7 @@ pub fn render_reference(
         }
     }
     if with_normals {
-        for (a, name) in ["normal_x", "normal_y", "normal_z"].into_iter().enumerate() {
-            image
-                .aovs
-                .push((name.into(), normals.iter().map(|n| n[a]).collect()));
-        }
+        add_normal_aovs(&mut image, &normals);
     }
     stats.stages.push(("raycast", ms(t1)));
     stats.stages.push(("total", ms(t0)));

@@ -132,6 +132,16 @@ impl Surfaces {
     }
 }
 
+/// Which of a [`Point`]'s sums the rendered field is, and whether it is divided by the
+/// Shepard sum (see [`Point::value`]).
+fn rendered_pick(field: FieldKind) -> (usize, bool) {
+    match field {
+        FieldKind::Csph => (RENDERED, true),
+        FieldKind::Sph => (RENDERED, false),
+        FieldKind::Density => (DENSITY, false),
+    }
+}
+
 /// Indices of a pass's weights and a point's sums: `norm(H) ·` V·A (the rendered attribute),
 /// V (Shepard / colour), m (density), V·B (the iso attribute).
 const RENDERED: usize = 0;
@@ -188,11 +198,17 @@ impl Point {
 
     /// The rendered field, as the volume renderer reconstructs it.
     fn rendered(&self, field: FieldKind) -> Option<f64> {
-        match field {
-            FieldKind::Csph => self.value((RENDERED, true)),
-            FieldKind::Sph => Some(self.s[RENDERED]),
-            FieldKind::Density => Some(self.s[DENSITY]),
-        }
+        self.value(rendered_pick(field))
+    }
+}
+
+/// Adds the first surfaces' world normals, one per pixel, to `image` as the AOVs
+/// `normal_x`, `normal_y`, `normal_z` (0 where a pixel has no surface).
+pub(crate) fn add_normal_aovs(image: &mut fluidcast_image::Image, normals: &[[f32; 3]]) {
+    for (a, name) in ["normal_x", "normal_y", "normal_z"].into_iter().enumerate() {
+        image
+            .aovs
+            .push((name.into(), normals.iter().map(|n| n[a]).collect()));
     }
 }
 
@@ -253,7 +269,7 @@ impl SurfaceCaster<'_> {
             let Some(pass) = ray.passage(p) else { continue };
             let k = within(samples, pass.z0, pass.z1);
             if self.surfaces.volume {
-                sums.scatter(ray, p, samples, kernel);
+                sums.scatter_passage(ray, p, &pass, samples, kernel);
             }
             if !k.is_empty() {
                 (lo, hi) = (lo.min(k.start), hi.max(k.end));
@@ -546,23 +562,11 @@ impl Walk<'_> {
         let Some(lighting) = &self.caster.params.volume_lighting else {
             return rgb;
         };
-        let pick = match self.caster.params.field {
-            FieldKind::Csph => (RENDERED, true),
-            FieldKind::Sph => (RENDERED, false),
-            FieldKind::Density => (DENSITY, false),
-        };
+        let pick = rendered_pick(self.caster.params.field);
         let g = self.point(z, true).gradient(pick);
-        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-        let d = self.ray.d.map(|x| x / self.ray.dlen);
-        let n_view = if len > 0.0 {
-            g.map(|x| -x / len)
-        } else {
-            d.map(|x| -x)
-        };
-        let f = self.caster.frame;
-        let world = |v: [f64; 3]| (f.right * v[0] + f.up * v[1] + f.forward * v[2]).to_array();
-        let to_eye = world(d.map(|x| -x));
-        lighting.shade_volume(rgb, world(n_view), to_eye, f.forward.to_array())
+        let (n, to_eye) = self.caster.facing(self.ray, g, true);
+        let forward = self.caster.frame.forward.to_array();
+        lighting.shade_volume(rgb, n, to_eye, forward)
     }
 
     /// Shades and composites the surface at depth `z` (`rising`: the field grows past it).
@@ -602,21 +606,28 @@ impl SurfaceRay {
 }
 
 impl SurfaceCaster<'_> {
+    /// The world-space unit normal of a level set with view-space gradient `g` on `ray`
+    /// (against the gradient where the field rises along the ray, `rising`, else along it:
+    /// facing back toward the ray's origin; the direction to the eye where `g` is 0), and the
+    /// direction to the eye.
+    fn facing(&self, ray: &Ray, g: [f64; 3], rising: bool) -> ([f64; 3], [f64; 3]) {
+        let to_eye = ray.d.map(|x| -x / ray.dlen);
+        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+        let n = if len > 0.0 {
+            let s = if rising { -1.0 / len } else { 1.0 / len };
+            g.map(|x| x * s)
+        } else {
+            to_eye
+        };
+        let f = self.frame;
+        (f.direction_to_world(n), f.direction_to_world(to_eye))
+    }
+
     /// Lights `hit` on `ray` (normal facing back along the ray, in world space) and
     /// composites it; the first one composited is the ray's surface (Z and normal).
     pub fn shade(&self, ray: &Ray, hit: &Hit, out: &mut SurfaceRay) {
-        let (g, d) = (hit.gradient, ray.d);
-        let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-        let n_view = if len > 0.0 {
-            let s = if hit.rising { -1.0 / len } else { 1.0 / len };
-            g.map(|x| x * s)
-        } else {
-            d.map(|x| -x / ray.dlen)
-        };
+        let (n, to_eye) = self.facing(ray, hit.gradient, hit.rising);
         let f = self.frame;
-        let world = |v: [f64; 3]| (f.right * v[0] + f.up * v[1] + f.forward * v[2]).to_array();
-        let n = world(n_view);
-        let to_eye = world(d.map(|x| -x / ray.dlen));
         let base = match self.surfaces.colour {
             Some(rgb) => rgb,
             None => hit.rendered.map_or([0.8; 3], |q| self.tf.eval(q).0),

@@ -2,6 +2,8 @@
 
 use std::sync::Arc;
 
+use glam::DVec3;
+
 use fluidcast_render::{render_reference, IsoField, RenderParams, Surfaces};
 use fluidcast_sph::{Kernel, Particles};
 use fluidcast_view::{Camera, TransferFunction};
@@ -188,6 +190,47 @@ fn check_ball(
         );
     }
     hits
+}
+
+/// Particle sheets parallel to z = 0 at these depths: each a 25 × 25 lattice of spacing 0.05
+/// centred on the z axis, support radius 0.1 (2 spacings), volume one lattice cell, value 1.
+fn sheets(zs: &[f32]) -> Particles {
+    let (s, h) = (0.05f32, 0.1f32);
+    let mut p = Particles::default();
+    for i in -12..=12 {
+        for j in -12..=12 {
+            for &z in zs {
+                p.positions.push([i as f32 * s, j as f32 * s, z]);
+                p.radii.push(h);
+                p.volumes.push(s * s * s);
+                p.masses.push(1.0);
+                p.values.push(1.0);
+            }
+        }
+    }
+    p
+}
+
+/// The brute-force colour field on the plane z = 0 over one lattice cell of [`sheets`]
+/// (21 × 21 points): where a sheet at 0 peaks, or a gap around 0 dips.
+fn middle_plane(p: &Particles, kernel: Kernel) -> impl Iterator<Item = f64> + '_ {
+    (0..=20)
+        .flat_map(|a| (0..=20).map(move |b| [a as f64 * 0.0025, b as f64 * 0.0025, 0.0]))
+        .map(move |x| brute(p, kernel, x)[1])
+}
+
+/// The pixels (i, j) of a `size`² view whose rays cross the plane z = 0 within `half` of
+/// the z axis (away from the sheets' edges), with each ray's origin and direction.
+fn rays_through_plane(cam: &Camera, size: u32, half: f64) -> Vec<(u32, u32, DVec3, DVec3)> {
+    let frame = cam.frame(size, size).unwrap();
+    (0..size)
+        .flat_map(|j| (0..size).map(move |i| (i, j)))
+        .filter_map(|(i, j)| {
+            let (o, d) = frame.ray(i, j);
+            let at = o + d * (-o.z / d.z);
+            (at.x.abs() <= half && at.y.abs() <= half).then_some((i, j, o, d))
+        })
+        .collect()
 }
 
 /// The first depth along `o + z d` in `[near, far]` where `field` crosses `iso`, marching in
@@ -454,23 +497,10 @@ fn surfaces_are_refused_where_not_drawn_and_checked() {
 /// the search around local extrema 252 of the 572 rays showed it.)
 #[test]
 fn a_sheet_thinner_than_a_depth_sample_is_not_missed() {
-    let (s, h) = (0.05f32, 0.1f32);
-    let mut p = Particles::default();
-    for i in -12..=12 {
-        for j in -12..=12 {
-            p.positions.push([i as f32 * s, j as f32 * s, 0.0]);
-            p.radii.push(h);
-            p.volumes.push(s * s * s);
-            p.masses.push(1.0);
-            p.values.push(1.0);
-        }
-    }
+    let p = sheets(&[0.0]);
     let kernel = Kernel::CubicSpline;
     // The smallest peak over the interior (on the plane, where the field is largest).
-    let peak = (0..=20)
-        .flat_map(|a| (0..=20).map(move |b| [a as f64 * 0.0025, b as f64 * 0.0025, 0.0]))
-        .map(|x| brute(&p, kernel, x)[1])
-        .fold(f64::INFINITY, f64::min);
+    let peak = middle_plane(&p, kernel).fold(f64::INFINITY, f64::min);
     let iso = 0.99 * peak;
     let mut cam = Camera::default();
     cam.reset([-0.7, -0.7, -0.1], [0.7, 0.7, 0.1]);
@@ -483,26 +513,18 @@ fn a_sheet_thinner_than_a_depth_sample_is_not_missed() {
     let (img, stats) = render_reference(&p, &cam, &tf(), &params(size, kernel, surfaces)).unwrap();
     let step = (stats.far - stats.near) / stats.depth_samples as f64;
     let (mut interior, mut shown) = (0, 0);
-    for j in 0..size {
-        for i in 0..size {
-            let frame = cam.frame(size, size).unwrap();
-            let (o, d) = frame.ray(i, j);
-            let at_plane = o + d * ((0.0 - o.z) / d.z);
-            if at_plane.x.abs() > 0.4 || at_plane.y.abs() > 0.4 {
-                continue;
-            }
-            interior += 1;
-            let z = img.depth[img.index(i, j)] as f64;
-            if z.is_finite() {
-                shown += 1;
-                let y = (o + d * z).to_array();
-                let f = brute(&p, kernel, y)[1];
-                assert!(
-                    (f - iso).abs() < 1e-6 * iso,
-                    "{i},{j}: field {f} at the surface, iso {iso}"
-                );
-                assert!(y[2] > 0.0, "{i},{j}: the far side of the sheet ({})", y[2]);
-            }
+    for (i, j, o, d) in rays_through_plane(&cam, size, 0.4) {
+        interior += 1;
+        let z = img.depth[img.index(i, j)] as f64;
+        if z.is_finite() {
+            shown += 1;
+            let y = (o + d * z).to_array();
+            let f = brute(&p, kernel, y)[1];
+            assert!(
+                (f - iso).abs() < 1e-6 * iso,
+                "{i},{j}: field {f} at the surface, iso {iso}"
+            );
+            assert!(y[2] > 0.0, "{i},{j}: the far side of the sheet ({})", y[2]);
         }
     }
     eprintln!("sheet: {shown} of {interior} interior pixels show it; iso {iso:.5} (peak {peak:.5}); depth step {step:.4}");
@@ -601,27 +623,11 @@ fn shaded_volume_lights_samples_by_the_field_gradient() {
 /// untested.)
 #[test]
 fn a_gap_thinner_than_a_depth_sample_shows_both_its_walls() {
-    let (s, h) = (0.05f32, 0.1f32);
-    let mut p = Particles::default();
-    for i in -12..=12 {
-        for j in -12..=12 {
-            for k in [-4, -3, -2, 2, 3, 4] {
-                p.positions
-                    .push([i as f32 * s, j as f32 * s, k as f32 * 0.8 * s]);
-                p.radii.push(h);
-                p.volumes.push(s * s * s);
-                p.masses.push(1.0);
-                p.values.push(1.0);
-            }
-        }
-    }
+    let p = sheets(&[-4, -3, -2, 2, 3, 4].map(|k| k as f32 * 0.04));
     let kernel = Kernel::CubicSpline;
     // The iso value: just above the field's largest value in the gap's middle plane, so the
     // gap is thin; below the field inside the slabs.
-    let dip = (0..=20)
-        .flat_map(|a| (0..=20).map(move |b| [a as f64 * 0.0025, b as f64 * 0.0025, 0.0]))
-        .map(|x| brute(&p, kernel, x)[1])
-        .fold(0.0, f64::max);
+    let dip = middle_plane(&p, kernel).fold(0.0, f64::max);
     let iso = 1.02 * dip;
     assert!(
         brute(&p, kernel, [0.0, 0.0, 0.12])[1] > iso,
@@ -637,19 +643,11 @@ fn a_gap_thinner_than_a_depth_sample_shows_both_its_walls() {
         ..Default::default()
     };
     let (img, _) = render_reference(&p, &cam, &tf(), &params(size, kernel, surfaces)).unwrap();
-    let frame = cam.frame(size, size).unwrap();
     let (mut interior, mut four) = (0, 0);
-    for j in 0..size {
-        for i in 0..size {
-            let (o, d) = frame.ray(i, j);
-            let at = o + d * ((0.0 - o.z) / d.z);
-            if at.x.abs() > 0.35 || at.y.abs() > 0.35 {
-                continue;
-            }
-            interior += 1;
-            let alpha = img.rgba[img.index(i, j)][3] as f64;
-            four += usize::from((alpha - 0.9375).abs() < 1e-6);
-        }
+    for (i, j, _, _) in rays_through_plane(&cam, size, 0.35) {
+        interior += 1;
+        let alpha = img.rgba[img.index(i, j)][3] as f64;
+        four += usize::from((alpha - 0.9375).abs() < 1e-6);
     }
     eprintln!("gap: {four} of {interior} interior rays composite four surfaces (iso {iso:.4}, gap's largest value {dip:.4})");
     assert!(interior > 400);

@@ -244,6 +244,12 @@ impl ViewFrame {
         DVec3::new(d.dot(self.right), d.dot(self.up), d.dot(self.forward))
     }
 
+    /// A view-space direction (x right, y up, z depth) in world space: the inverse of
+    /// [`ViewFrame::to_view`]'s rotation (directions have no origin).
+    pub fn direction_to_world(&self, v: [f64; 3]) -> [f64; 3] {
+        (self.right * v[0] + self.up * v[1] + self.forward * v[2]).to_array()
+    }
+
     /// World point → continuous pixel coordinates (x from the left edge, y from the top edge;
     /// the centre of pixel (i, j) is (i + ½, j + ½)); `None` behind the camera.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64)> {
