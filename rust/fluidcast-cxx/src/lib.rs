@@ -319,6 +319,7 @@ fn empty_dataset(name: &str) -> Dataset {
         points: Vec::new(),
         point_data: Vec::new(),
         field_data: Vec::new(),
+        undecoded: Vec::new(),
     }
 }
 

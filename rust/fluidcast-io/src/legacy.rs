@@ -249,6 +249,7 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         points,
         point_data: p.point_data,
         field_data: p.field_data,
+        undecoded: Vec::new(),
     })
 }
 

@@ -240,6 +240,9 @@ pub struct Dataset {
     pub point_data: Vec<DataArray>,
     /// Field data arrays (e.g. `TIME`, `support_radius`), any number of tuples.
     pub field_data: Vec<DataArray>,
+    /// Point arrays the file has but the read did not decode ([`Arrays::Named`]), so that
+    /// an error about a missing array can still list what the file holds.
+    pub undecoded: Vec<String>,
 }
 
 impl Dataset {
@@ -285,16 +288,46 @@ impl Dataset {
 /// Point-data arrays whose tuple count differs from the point count are an error, as are
 /// files with structural problems; every error names the file.
 pub fn read_dataset(path: impl AsRef<Path>) -> Result<Dataset, ReadError> {
+    read_dataset_with(path, &Arrays::All)
+}
+
+/// [`read_dataset`] decoding only the point arrays `arrays` selects (the points and the
+/// field data are always read): a render needs a few of a file's arrays, and each array
+/// not decoded is 8 bytes per value less in memory. Arrays that are not decoded are not
+/// checked either. Legacy `.vtk` files are parsed whole and the rest dropped after.
+pub fn read_dataset_with(path: impl AsRef<Path>, arrays: &Arrays) -> Result<Dataset, ReadError> {
     let path = path.as_ref();
     // The format first: an unsupported file (or /dev/zero) is refused before it is read.
     let format = Format::of(path)?;
-    parse_as(format, &read_file(path)?, path)
+    parse_as(format, &read_file(path)?, path, arrays)
 }
 
 /// Parses a particle file's bytes; `path` names it in errors and its extension chooses the
 /// format. The entry point for fuzzing and for data that is not on disk.
 pub fn parse_dataset(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
-    parse_as(Format::of(path)?, bytes, path)
+    parse_as(Format::of(path)?, bytes, path, &Arrays::All)
+}
+
+/// Which point-data arrays a read decodes.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub enum Arrays {
+    /// Every array (what `fluidcast info` shows).
+    #[default]
+    All,
+    /// Only these names, and the ghost flags a parallel file's pieces need.
+    Named(Vec<String>),
+}
+
+impl Arrays {
+    /// Whether the point array `name` is to be decoded.
+    pub fn wants(&self, name: &str) -> bool {
+        match self {
+            Arrays::All => true,
+            Arrays::Named(names) => {
+                name == parallel::GHOST_ARRAY || names.iter().any(|n| n == name)
+            }
+        }
+    }
 }
 
 /// The data-set formats, chosen by extension.
@@ -331,19 +364,29 @@ impl Format {
     }
 }
 
-fn parse_as(format: Format, bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
-    let ds = match format {
-        Format::Xml => xml::parse(bytes, path),
+fn parse_as(
+    format: Format,
+    bytes: &[u8],
+    path: &Path,
+    arrays: &Arrays,
+) -> Result<Dataset, ReadError> {
+    let mut ds = match format {
+        Format::Xml => xml::parse_with(bytes, path, arrays),
         Format::Legacy => legacy::parse(bytes, path),
-        Format::Parallel => parallel::parse(bytes, path),
+        Format::Parallel => parallel::parse(bytes, path, arrays),
     }?;
+    let (kept, dropped): (Vec<DataArray>, Vec<DataArray>) = std::mem::take(&mut ds.point_data)
+        .into_iter()
+        .partition(|a| arrays.wants(&a.name));
+    ds.point_data = kept;
+    ds.undecoded.extend(dropped.into_iter().map(|a| a.name));
     validate(&ds)?;
     Ok(ds)
 }
 
 /// Reads one piece of a parallel file: a `.vtu`, `.vtp` or `.vtk`, never another parallel
 /// file (which could list itself).
-fn read_piece(path: &Path) -> Result<Dataset, ReadError> {
+fn read_piece(path: &Path, arrays: &Arrays) -> Result<Dataset, ReadError> {
     match Format::of(path)? {
         Format::Parallel => Err(ReadError::new(
             path,
@@ -352,7 +395,7 @@ fn read_piece(path: &Path) -> Result<Dataset, ReadError> {
                     .into(),
             ),
         )),
-        format => parse_as(format, &read_file(path)?, path),
+        format => parse_as(format, &read_file(path)?, path, arrays),
     }
 }
 
@@ -435,9 +478,14 @@ impl Input {
 
     /// Reads one of [`Input::frames`]' files; an error names the `.pvd` that listed it.
     pub fn read(&self, file: &Path) -> Result<Dataset, ReadError> {
+        self.read_with(file, &Arrays::All)
+    }
+
+    /// [`Input::read`] decoding only the point arrays `arrays` selects.
+    pub fn read_with(&self, file: &Path, arrays: &Arrays) -> Result<Dataset, ReadError> {
         match self {
-            Input::File(_) => read_dataset(file),
-            Input::Series(c) => read_dataset(file).map_err(|e| e.listed_in(&c.path)),
+            Input::File(_) => read_dataset_with(file, arrays),
+            Input::Series(c) => read_dataset_with(file, arrays).map_err(|e| e.listed_in(&c.path)),
         }
     }
 

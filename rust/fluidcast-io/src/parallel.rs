@@ -16,11 +16,11 @@ use std::sync::Mutex;
 use quick_xml::events::Event;
 
 use crate::xml::tag_attrs;
-use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind};
+use crate::{Arrays, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind};
 
 /// VTK's ghost array and the bits that mark a point as not this piece's own
 /// (`vtkDataSetAttributes::DUPLICATEPOINT | HIDDENPOINT`).
-const GHOST_ARRAY: &str = "vtkGhostType";
+pub(crate) const GHOST_ARRAY: &str = "vtkGhostType";
 
 /// A ghost value (a byte) not owned has one of the two lowest bits set: value mod 4 ≥ 1.
 fn owned_ghost_value(v: f64) -> bool {
@@ -110,7 +110,7 @@ pub fn parse_parallel(bytes: &[u8], path: &Path) -> Result<ParallelFile, ReadErr
 }
 
 /// Reads a parallel file: its summary from `bytes`, its pieces from disk.
-pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
+pub(crate) fn parse(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset, ReadError> {
     let summary = parse_parallel(bytes, path)?;
     // The pieces are held together before they are merged: a summary that lists more (or
     // the same file many times) than memory holds is refused before any is read.
@@ -125,15 +125,15 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         total.saturating_mul(2),
     )
     .map_err(|e| ReadError::new(path, ReadErrorKind::TooLarge(e.to_string())))?;
-    let pieces = read_pieces(&summary.pieces)
+    let pieces = read_pieces(&summary.pieces, arrays)
         .into_iter()
         .map(|r| r.map_err(|e| e.listed_in(path)))
         .collect::<Result<Vec<_>, _>>()?;
-    merge(path, &summary, pieces)
+    merge(path, &summary, pieces, arrays)
 }
 
 /// Reads every piece, several at a time (one thread per core at most); results in order.
-fn read_pieces(files: &[PathBuf]) -> Vec<Result<Dataset, ReadError>> {
+fn read_pieces(files: &[PathBuf], arrays: &Arrays) -> Vec<Result<Dataset, ReadError>> {
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(files.len());
@@ -147,7 +147,7 @@ fn read_pieces(files: &[PathBuf]) -> Vec<Result<Dataset, ReadError>> {
                 let (Some(file), Some(slot)) = (files.get(i), slots.get(i)) else {
                     break;
                 };
-                let r = crate::read_piece(file);
+                let r = crate::read_piece(file, arrays);
                 if let Ok(mut g) = slot.lock() {
                     *g = Some(r);
                 }
@@ -171,8 +171,19 @@ fn read_pieces(files: &[PathBuf]) -> Vec<Result<Dataset, ReadError>> {
 /// The pieces' particles as one data set: points and point arrays concatenated in order
 /// (each declared array must be in every piece; an undeclared one is kept where every piece
 /// has it), ghost points dropped, the field data of the first piece.
-fn merge(path: &Path, summary: &ParallelFile, pieces: Vec<Dataset>) -> Result<Dataset, ReadError> {
+fn merge(
+    path: &Path,
+    summary: &ParallelFile,
+    pieces: Vec<Dataset>,
+    arrays: &Arrays,
+) -> Result<Dataset, ReadError> {
     let err = |m: String| ReadError::new(path, ReadErrorKind::Format(m));
+    // Declared arrays the read did not decode are in no piece.
+    let declared: Vec<&String> = summary
+        .point_arrays
+        .iter()
+        .filter(|n| arrays.wants(n))
+        .collect();
     let mut names: Vec<(String, usize)> = Vec::new();
     if let Some(first) = pieces.first() {
         names = first
@@ -190,7 +201,7 @@ fn merge(path: &Path, summary: &ParallelFile, pieces: Vec<Dataset>) -> Result<Da
                 summary.kind
             )));
         }
-        for name in &summary.point_arrays {
+        for name in &declared {
             if ds.point_array(name).is_none() {
                 return Err(err(format!(
                     "piece {} lacks the declared point array '{name}'",
@@ -202,10 +213,9 @@ fn merge(path: &Path, summary: &ParallelFile, pieces: Vec<Dataset>) -> Result<Da
     }
     // Every declared array is in every piece (checked above): one that did not stay has
     // different component counts somewhere.
-    let uneven = summary
-        .point_arrays
+    let uneven = declared
         .iter()
-        .find(|d| !names.iter().any(|(n, _)| n == *d));
+        .find(|d| !names.iter().any(|(n, _)| n == **d));
     if let Some(d) = uneven {
         return Err(err(format!(
             "the declared point array '{d}' has different component counts in the pieces"
@@ -219,6 +229,10 @@ fn merge(path: &Path, summary: &ParallelFile, pieces: Vec<Dataset>) -> Result<Da
         field_data: pieces
             .first()
             .map(|d| d.field_data.clone())
+            .unwrap_or_default(),
+        undecoded: pieces
+            .first()
+            .map(|d| d.undecoded.clone())
             .unwrap_or_default(),
     };
     out.point_data = names

@@ -15,7 +15,7 @@ use std::path::Path;
 use quick_xml::events::{BytesStart, Event};
 
 use crate::payload::{decode_base64, decode_raw, Compressor, Ctx};
-use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
+use crate::{Arrays, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
 /// Attributes of one element as owned strings.
 pub(crate) fn attrs(e: &BytesStart) -> Result<HashMap<String, String>, String> {
@@ -61,7 +61,7 @@ struct ArrayDecl {
 #[derive(Default)]
 struct Piece {
     num_points: usize,
-    points: Option<DataArray>,
+    points: Option<Vec<[f64; 3]>>,
     point_data: Vec<DataArray>,
 }
 
@@ -75,7 +75,10 @@ pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
 
 /// The appended-data section: its bytes from just after the `_` marker, and its encoding.
 struct Appended<'a> {
+    /// The section's bytes from offset `first` on (0: all of it; a lazy read holds one
+    /// array's bytes at a time).
     data: &'a [u8],
+    first: usize,
     base64: bool,
     /// Where the data ends: the position of `</AppendedData>` less the whitespace before it.
     end: usize,
@@ -113,8 +116,32 @@ impl Appended<'_> {
 /// Splits the file into the XML head and the appended data, checking the `<AppendedData>`
 /// tag's encoding and that the file ends with `</AppendedData></VTKFile>`.
 fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErrorKind> {
-    let Some(start) = find(bytes, b"<AppendedData", 0) else {
+    let Some(tag) = appended_tag(bytes)? else {
         return Ok((bytes, None));
+    };
+    let data = bytes.get(tag.data..).unwrap_or_default();
+    let appended = Appended {
+        data,
+        first: 0,
+        base64: tag.base64,
+        end: appended_end(data)?,
+        offsets: Vec::new(),
+    };
+    Ok((bytes.get(..tag.start).unwrap_or_default(), Some(appended)))
+}
+
+/// Where the `<AppendedData>` tag starts, where its data starts (after the `_` marker) and
+/// whether it is base64; `None` when `bytes` has no such tag. `bytes` may be just the
+/// start of the file, as long as it reaches the marker.
+struct AppendedTag {
+    start: usize,
+    data: usize,
+    base64: bool,
+}
+
+fn appended_tag(bytes: &[u8]) -> Result<Option<AppendedTag>, ReadErrorKind> {
+    let Some(start) = find(bytes, b"<AppendedData", 0) else {
+        return Ok(None);
     };
     let close = find(bytes, b">", start)
         .ok_or_else(|| ReadErrorKind::Truncated("unterminated <AppendedData> tag".into()))?;
@@ -144,9 +171,17 @@ fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErr
             "appended data does not start with the '_' marker".into(),
         ));
     }
-    let data = rest.get(lead + 1..).unwrap_or_default();
-    // The data ends where `</AppendedData></VTKFile>` (and whitespace) closes the file.
-    let end = trim_end(data)
+    Ok(Some(AppendedTag {
+        start,
+        data: close + 1 + lead + 1,
+        base64,
+    }))
+}
+
+/// The length of the appended data less the `</AppendedData></VTKFile>` (and whitespace)
+/// that must close the file; `data` may be just the end of the data.
+fn appended_end(data: &[u8]) -> Result<usize, ReadErrorKind> {
+    trim_end(data)
         .strip_suffix(b"</VTKFile>")
         .map(trim_end)
         .and_then(|b| b.strip_suffix(b"</AppendedData>"))
@@ -157,14 +192,7 @@ fn split_appended(bytes: &[u8]) -> Result<(&[u8], Option<Appended<'_>>), ReadErr
                  garbage after the end)"
                     .into(),
             )
-        })?;
-    let appended = Appended {
-        data,
-        base64,
-        end,
-        offsets: Vec::new(),
-    };
-    Ok((bytes.get(..start).unwrap_or_default(), Some(appended)))
+        })
 }
 
 fn trim_end(b: &[u8]) -> &[u8] {
@@ -393,6 +421,11 @@ fn file_ctx(fa: &HashMap<String, String>) -> Result<Ctx, ReadErrorKind> {
 
 /// Parses a `.vtu` or `.vtp` file's bytes.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
+    parse_with(bytes, path, &Arrays::All)
+}
+
+/// [`parse`] decoding only the point arrays `arrays` selects.
+pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset, ReadError> {
     let err = |k: ReadErrorKind| ReadError::new(path, k);
     let (head, mut appended) = split_appended(bytes).map_err(err)?;
     let h = parse_head(head, appended.is_some()).map_err(err)?;
@@ -408,9 +441,21 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     let ctx = file_ctx(&h.file_attrs).map_err(err)?;
     let mut pieces = h.pieces;
     let mut field_data = Vec::new();
-    for d in h.decls {
+    let mut undecoded = Vec::new();
+    // The points first: VTK writes them after the point data, and their two copies (flat
+    // and grouped) are best held while nothing else is.
+    let mut decls = h.decls;
+    decls.sort_by_key(|d| d.section != Section::Points);
+    for d in decls {
         if matches!(d.section, Section::Other | Section::None) {
             continue; // cells and cell data do not matter for particles
+        }
+        let name = d.attrs.get("Name").map_or("", String::as_str);
+        if d.section == Section::PointData && !arrays.wants(name) {
+            if d.piece == 0 {
+                undecoded.push(name.to_string());
+            }
+            continue;
         }
         let expected_tuples = match d.section {
             Section::Points | Section::PointData => pieces.get(d.piece).map(|p| p.num_points),
@@ -424,7 +469,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
             continue;
         };
         match d.section {
-            Section::Points => piece.points = Some(arr),
+            // Grouped at once, so that the flat values are freed before the next array.
+            Section::Points => piece.points = Some(crate::xyz(&arr.values).collect()),
             Section::PointData => piece.point_data.push(arr),
             Section::FieldData => field_data.push(arr),
             _ => {}
@@ -437,6 +483,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         points,
         point_data,
         field_data,
+        undecoded,
     })
 }
 
@@ -542,9 +589,12 @@ fn decode_values(
                 .get("offset")
                 .and_then(|s| s.trim().parse().ok())
                 .ok_or("appended array without a valid offset")?;
-            let src = app.data.get(off..app.end).ok_or_else(|| {
-                format!("offset {off} is beyond the end of the appended data (file truncated?)")
-            })?;
+            let src = off
+                .checked_sub(app.first)
+                .and_then(|a| app.data.get(a..app.end - app.first))
+                .ok_or_else(|| {
+                    format!("offset {off} is beyond the end of the appended data (file truncated?)")
+                })?;
             let (raw, used) = if app.base64 {
                 decode_base64(src, ctx, expected_bytes)?
             } else {
@@ -564,11 +614,12 @@ fn decode_values(
 
 /// Concatenates pieces; keeps the point arrays present (same name, components) in every
 /// piece.
-fn concat_pieces(pieces: Vec<Piece>) -> Result<(Vec<[f64; 3]>, Vec<DataArray>), ReadErrorKind> {
-    let mut points = Vec::new();
-    for (i, p) in pieces.iter().enumerate() {
-        match &p.points {
-            Some(a) => points.extend(crate::xyz(&a.values)),
+fn concat_pieces(mut pieces: Vec<Piece>) -> Result<(Vec<[f64; 3]>, Vec<DataArray>), ReadErrorKind> {
+    let mut points: Vec<[f64; 3]> = Vec::new();
+    for (i, p) in pieces.iter_mut().enumerate() {
+        match p.points.take() {
+            Some(a) if points.is_empty() => points = a,
+            Some(a) => points.extend(a),
             None if p.num_points == 0 => {}
             None => {
                 return Err(ReadErrorKind::Format(format!(
