@@ -94,7 +94,7 @@ fn support_bounds(particles: &Particles) -> [[f64; 2]; 3] {
 /// What every ray of a view gathers from.
 struct Gather<'a> {
     particles: &'a Particles,
-    grid: NeighbourGrid,
+    grid: NeighbourGrid<'a>,
     /// World-space box of every support, `[min, max]` per axis.
     bounds: [[f64; 2]; 3],
     frame: &'a ViewFrame,

@@ -69,7 +69,7 @@ impl FieldSample {
 
 impl Particles {
     /// A neighbour grid whose cells are as large as the largest support radius.
-    pub fn neighbour_grid(&self) -> NeighbourGrid {
+    pub fn neighbour_grid(&self) -> NeighbourGrid<'_> {
         NeighbourGrid::new(&self.positions, self.max_radius())
     }
 

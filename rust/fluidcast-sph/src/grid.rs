@@ -3,20 +3,21 @@
 /// Particles are sorted by cell (counting sort); each cell stores a range into the sorted
 /// index list. Queries with a radius up to the cell size visit 3×3×3 cells.
 #[derive(Debug, Clone)]
-pub struct NeighbourGrid {
+pub struct NeighbourGrid<'a> {
     origin: [f32; 3],
     cell: f32,
     dims: [usize; 3],
     /// `starts[c]..starts[c+1]` indexes `indices` for cell `c`.
     starts: Vec<u32>,
     indices: Vec<u32>,
-    positions: Vec<[f32; 3]>,
+    /// The positions it was built over (borrowed: millions of particles need no copy).
+    positions: &'a [[f32; 3]],
 }
 
-impl NeighbourGrid {
+impl<'a> NeighbourGrid<'a> {
     /// Builds the grid with the given cell size (world units, > 0). The cell size is grown
     /// if the grid would need far more cells than there are particles.
-    pub fn new(positions: &[[f32; 3]], cell_size: f32) -> NeighbourGrid {
+    pub fn new(positions: &'a [[f32; 3]], cell_size: f32) -> NeighbourGrid<'a> {
         let (lo, hi) = if positions.is_empty() {
             ([0.0; 3], [0.0; 3])
         } else {
@@ -37,27 +38,31 @@ impl NeighbourGrid {
             let c = [0, 1, 2].map(|k| (((p[k] - lo[k]) / cell) as usize).min(dims[k] - 1));
             (c[0] * dims[1] + c[1]) * dims[2] + c[2]
         };
+        // Counting sort by cell. `counts[c]` is first cell c's start, then (as the fill's
+        // cursor) its end, which is cell c + 1's start: shifted back by one afterwards, so
+        // no second table of ncell entries is needed.
         let mut counts = vec![0u32; ncell + 1];
-        let ids: Vec<usize> = positions.iter().map(cid).collect();
-        for &c in &ids {
-            counts[c + 1] += 1;
+        for p in positions {
+            counts[cid(p) + 1] += 1;
         }
         for i in 0..ncell {
             counts[i + 1] += counts[i];
         }
-        let mut fill = counts.clone();
         let mut indices = vec![0u32; positions.len()];
-        for (i, &c) in ids.iter().enumerate() {
-            indices[fill[c] as usize] = i as u32;
-            fill[c] += 1;
+        for (i, p) in positions.iter().enumerate() {
+            let c = cid(p);
+            indices[counts[c] as usize] = i as u32;
+            counts[c] += 1;
         }
+        counts.copy_within(..ncell, 1);
+        counts[0] = 0;
         NeighbourGrid {
             origin: lo,
             cell,
             dims,
             starts: counts,
             indices,
-            positions: positions.to_vec(),
+            positions,
         }
     }
 

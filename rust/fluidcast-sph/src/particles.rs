@@ -1,6 +1,7 @@
 use std::path::{Path, PathBuf};
 
 use fluidcast_io::{DataArray, Dataset};
+use rayon::prelude::*;
 
 use crate::grid::bounds;
 use crate::NeighbourGrid;
@@ -101,6 +102,45 @@ pub struct ParticleSpec {
     pub mass: Option<String>,
 }
 
+/// The arrays [`VolumeSource::Auto`] and an automatic mass look for, in order.
+const MASS_NAMES: [&str; 2] = ["mass", "m"];
+const DENSITY_NAMES: [&str; 2] = ["density", "rho"];
+const VOLUME_NAMES: [&str; 2] = ["volume", "V"];
+
+impl ParticleSpec {
+    /// The point arrays [`Particles::from_dataset`] may read under this spec: a read that
+    /// decodes only these ([`fluidcast_io::Arrays`]) builds the same particles.
+    pub fn arrays(&self) -> Vec<String> {
+        let mut names: Vec<String> = Vec::new();
+        if let Some(q) = &self.quantity {
+            names.push(q.array.clone());
+        }
+        if let RadiusSource::Array { name, .. } = &self.radius {
+            names.push(name.clone());
+        }
+        match &self.volume {
+            VolumeSource::MassDensity { mass, density } => {
+                names.extend([mass.clone(), density.clone()])
+            }
+            VolumeSource::Array(name) => names.push(name.clone()),
+            VolumeSource::Uniform => {}
+            VolumeSource::Auto => names.extend(VOLUME_NAMES.map(String::from)),
+        }
+        match &self.mass {
+            Some(name) => names.push(name.clone()),
+            None => names.extend(
+                MASS_NAMES
+                    .iter()
+                    .chain(&DENSITY_NAMES)
+                    .map(|n| n.to_string()),
+            ),
+        }
+        names.sort();
+        names.dedup();
+        names
+    }
+}
+
 impl Default for ParticleSpec {
     fn default() -> Self {
         ParticleSpec {
@@ -179,6 +219,7 @@ fn available(ds: &Dataset) -> String {
                 a.name.clone()
             }
         })
+        .chain(ds.undecoded.iter().cloned())
         .collect();
     if v.is_empty() {
         "none".into()
@@ -204,34 +245,27 @@ fn first_of<'a>(ds: &'a Dataset, names: &[&str]) -> Option<&'a DataArray> {
 
 /// Extracts the selected component of `q` as one value per point.
 pub fn quantity_values(ds: &Dataset, q: &Quantity) -> Result<Vec<f64>, ParticleError> {
-    let a = array(ds, &q.array)?;
-    let nc = a.num_components;
-    let mag = |t: &[f64]| t.iter().map(|v| v * v).sum::<f64>().sqrt();
-    Ok(match q.component {
-        Component::Auto if nc == 1 => a.values.clone(),
-        Component::Auto | Component::Magnitude => a.values.chunks_exact(nc).map(mag).collect(),
-        Component::Index(k) if k < nc => a.values.chunks_exact(nc).map(|t| t[k]).collect(),
-        Component::Index(k) => {
-            return Err(ParticleError::BadComponent {
-                file: ds.path.clone(),
-                name: q.array.clone(),
-                ncomp: nc,
-                index: k,
-            })
-        }
-    })
+    let at = quantity_at(ds, q)?;
+    Ok((0..ds.points.len()).map(at).collect())
 }
 
 /// A far outlier lies beyond this many inter-quartile widths from the central half of
 /// the particles (spray flies a few body lengths; a corrupt coordinate, 10^10 and more).
 pub const OUTLIER_FACTOR: f64 = 1e4;
 
+/// Most points [`far_outliers`] takes its quartiles from.
+const QUARTILE_SAMPLE: usize = 1 << 20;
+
 /// Which finite points lie far outside the rest: more than [`OUTLIER_FACTOR`] times the
 /// largest inter-quartile width (over x, y, z) outside the box of the quartiles. Empty when
 /// there are none, fewer than 8 points, or more than half of them coincide.
 pub fn far_outliers(points: &[[f64; 3]]) -> Vec<usize> {
+    // Quartiles of up to 2^20 points (a stride sample beyond): with a margin of 10^4
+    // quartile widths they need not be exact, and millions of particles need no copy.
+    let stride = points.len().div_ceil(QUARTILE_SAMPLE).max(1);
     let finite: Vec<&[f64; 3]> = points
         .iter()
+        .step_by(stride)
         .filter(|p| p.iter().all(|v| v.is_finite()))
         .collect();
     if finite.len() < 8 {
@@ -343,6 +377,150 @@ fn single_precision(
     Ok(())
 }
 
+/// One value per point index, computed when asked: the particles are built from the data
+/// set's arrays without a second full-length copy of each in double precision.
+type PerParticle<'a> = Box<dyn Fn(usize) -> f64 + 'a>;
+
+/// `scale · a[i]` of a one-component array.
+fn per_value(a: &DataArray, scale: f64) -> PerParticle<'_> {
+    Box::new(move |i| a.values[i] * scale)
+}
+
+/// The selected component of `q` at each point (see [`quantity_values`]).
+fn quantity_at<'a>(ds: &'a Dataset, q: &Quantity) -> Result<PerParticle<'a>, ParticleError> {
+    let a = array(ds, &q.array)?;
+    let nc = a.num_components;
+    let v = &a.values;
+    Ok(match q.component {
+        Component::Auto if nc == 1 => per_value(a, 1.0),
+        Component::Auto | Component::Magnitude => Box::new(move |i| {
+            v[i * nc..(i + 1) * nc]
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>()
+                .sqrt()
+        }),
+        Component::Index(k) if k < nc => Box::new(move |i| v[i * nc + k]),
+        Component::Index(k) => {
+            return Err(ParticleError::BadComponent {
+                file: ds.path.clone(),
+                name: q.array.clone(),
+                ncomp: nc,
+                index: k,
+            })
+        }
+    })
+}
+
+/// Each particle's support radius under `spec`, with a note where it was chosen for the
+/// user; `kept` finite points and `spacing` (the mean nearest-neighbour distance) for the
+/// message and the suggestion when nothing gives a radius.
+fn radius_at<'a>(
+    ds: &'a Dataset,
+    spec: &ParticleSpec,
+    kept: usize,
+    spacing: &dyn Fn() -> Option<f64>,
+    notes: &mut Vec<String>,
+) -> Result<PerParticle<'a>, ParticleError> {
+    let h = match &spec.radius {
+        RadiusSource::Array { name, scale } => {
+            let a = array(ds, name)?;
+            if a.num_components != 1 {
+                return Err(ParticleError::Other {
+                    file: ds.path.clone(),
+                    message: format!("radius array '{name}' must have 1 component"),
+                });
+            }
+            return Ok(per_value(a, *scale));
+        }
+        RadiusSource::Constant(h) => *h,
+        RadiusSource::Auto => match ds.field_scalar("support_radius") {
+            Some(h) => {
+                notes.push(format!(
+                    "support radius {h} from the file's field data 'support_radius'"
+                ));
+                h
+            }
+            None => {
+                let h = spacing()
+                    .map(|s| 2.0 * s)
+                    .ok_or_else(|| no_spacing(ds, kept))?;
+                notes.push(format!(
+                    "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
+                ));
+                h
+            }
+        },
+    };
+    Ok(Box::new(move |_| h))
+}
+
+fn no_spacing(ds: &Dataset, kept: usize) -> ParticleError {
+    ParticleError::Other {
+        file: ds.path.clone(),
+        message: format!(
+            "cannot suggest a support radius: {kept} finite points with no measurable \
+             spacing between neighbours{}: give --support-radius",
+            ds.bounds()
+                .map(|(lo, hi)| format!(
+                    ", spread over {:.3e} world units",
+                    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+                ))
+                .unwrap_or_default()
+        ),
+    }
+}
+
+/// Each particle's volume under `spec`, with a note where it was chosen automatically.
+fn volume_at<'a>(
+    ds: &'a Dataset,
+    spec: &ParticleSpec,
+    spacing: &dyn Fn() -> Option<f64>,
+    notes: &mut Vec<String>,
+) -> Result<PerParticle<'a>, ParticleError> {
+    let mass_density = |m: &'a DataArray, d: &'a DataArray| -> PerParticle<'a> {
+        Box::new(move |i| m.values[i] / d.values[i])
+    };
+    let uniform = |s: Option<f64>| -> PerParticle<'a> {
+        let s = s.unwrap_or(1.0);
+        Box::new(move |_| s * s * s)
+    };
+    Ok(match &spec.volume {
+        VolumeSource::MassDensity { mass, density } => {
+            mass_density(array(ds, mass)?, array(ds, density)?)
+        }
+        VolumeSource::Array(name) => per_value(array(ds, name)?, 1.0),
+        VolumeSource::Uniform => uniform(spacing()),
+        VolumeSource::Auto => match (
+            first_of(ds, &MASS_NAMES),
+            first_of(ds, &DENSITY_NAMES),
+            first_of(ds, &VOLUME_NAMES),
+        ) {
+            (Some(m), Some(d), _) => {
+                notes.push(format!("particle volume = {} / {}", m.name, d.name));
+                mass_density(m, d)
+            }
+            (_, _, Some(v)) => {
+                notes.push(format!("particle volume from array '{}'", v.name));
+                per_value(v, 1.0)
+            }
+            _ => {
+                notes.push("uniform particle volume (no mass/density or volume arrays)".into());
+                uniform(spacing())
+            }
+        },
+    })
+}
+
+fn far_outlier_warning(x: [f64; 3], i: usize, count: usize, kept: usize) -> String {
+    format!(
+        "warning: {count} of {kept} particles lie far outside the rest (e.g. particle {i} at \
+         ({:.3e}, {:.3e}, {:.3e})); they are rendered, and an automatic camera frames \
+         them too: remove them, or set the camera",
+        x[0], x[1], x[2]
+    )
+}
+
 impl Particles {
     /// Builds particles from a data set. Points with a NaN/infinite coordinate are skipped and
     /// counted in `skipped_nonfinite`; bad radii or volumes of kept particles are errors.
@@ -352,130 +530,48 @@ impl Particles {
         if n == 0 {
             return Err(ParticleError::NoPoints { file });
         }
-        let keep: Vec<usize> = (0..n)
-            .filter(|&i| ds.points[i].iter().all(|v| v.is_finite()))
-            .collect();
-        if keep.is_empty() {
+        let finite = |i: usize| ds.points[i].iter().all(|v| v.is_finite());
+        let kept = (0..n).into_par_iter().filter(|&i| finite(i)).count();
+        if kept == 0 {
             return Err(ParticleError::NoFinitePoints { file, count: n });
         }
         let mut notes = Vec::new();
-        let values = match &spec.quantity {
-            Some(q) => quantity_values(ds, q)?,
-            None => vec![1.0; n],
+        let values: PerParticle = match &spec.quantity {
+            Some(q) => quantity_at(ds, q)?,
+            None => Box::new(|_| 1.0),
         };
         // Outliers and the particle spacing are computed once, for the radius, the volume and
         // the warning alike.
         let far = far_outliers(&ds.points);
         let spacing_cell = std::cell::OnceCell::new();
         let spacing = || *spacing_cell.get_or_init(|| spacing_without(&ds.points, &far));
-        let radii: Vec<f64> = match &spec.radius {
-            RadiusSource::Array { name, scale } => {
-                let a = array(ds, name)?;
-                if a.num_components != 1 {
-                    return Err(ParticleError::Other {
-                        file,
-                        message: format!("radius array '{name}' must have 1 component"),
-                    });
+        let radii = radius_at(ds, spec, kept, &spacing, &mut notes)?;
+        let volumes = volume_at(ds, spec, &spacing, &mut notes)?;
+        let masses: PerParticle = match spec.mass.as_deref() {
+            Some(name) => per_value(array(ds, name)?, 1.0),
+            None => match (first_of(ds, &MASS_NAMES), first_of(ds, &DENSITY_NAMES)) {
+                (Some(m), _) => per_value(m, 1.0),
+                (None, Some(d)) => {
+                    let v = volume_at(ds, spec, &spacing, &mut Vec::new())?;
+                    Box::new(move |i| v(i) * d.values[i])
                 }
-                a.values.iter().map(|v| v * scale).collect()
-            }
-            RadiusSource::Constant(h) => vec![*h; n],
-            RadiusSource::Auto => match ds.field_scalar("support_radius") {
-                Some(h) => {
-                    notes.push(format!(
-                        "support radius {h} from the file's field data 'support_radius'"
-                    ));
-                    vec![h; n]
-                }
-                None => {
-                    let h = spacing()
-                        .map(|s| 2.0 * s)
-                        .ok_or_else(|| ParticleError::Other {
-                            file: file.clone(),
-                            message: format!(
-                                "cannot suggest a support radius: {} finite points with no \
-                             measurable spacing between neighbours{}: give --support-radius",
-                                keep.len(),
-                                ds.bounds()
-                                    .map(|(lo, hi)| format!(
-                                        ", spread over {:.3e} world units",
-                                        (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
-                                    ))
-                                    .unwrap_or_default()
-                            ),
-                        })?;
-                    notes.push(format!(
-                        "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
-                    ));
-                    vec![h; n]
-                }
-            },
-        };
-        let mass_density = |m: &DataArray, d: &DataArray| -> Vec<f64> {
-            m.values.iter().zip(&d.values).map(|(m, r)| m / r).collect()
-        };
-        let volumes: Vec<f64> = match &spec.volume {
-            VolumeSource::MassDensity { mass, density } => {
-                mass_density(array(ds, mass)?, array(ds, density)?)
-            }
-            VolumeSource::Array(name) => array(ds, name)?.values.clone(),
-            VolumeSource::Uniform => {
-                let s = spacing().unwrap_or(1.0);
-                vec![s * s * s; n]
-            }
-            VolumeSource::Auto => {
-                let m = first_of(ds, &["mass", "m"]);
-                let d = first_of(ds, &["density", "rho"]);
-                match (m, d, first_of(ds, &["volume", "V"])) {
-                    (Some(m), Some(d), _) => {
-                        notes.push(format!("particle volume = {} / {}", m.name, d.name));
-                        mass_density(m, d)
-                    }
-                    (_, _, Some(v)) => {
-                        notes.push(format!("particle volume from array '{}'", v.name));
-                        v.values.clone()
-                    }
-                    _ => {
-                        let s = spacing().unwrap_or(1.0);
-                        notes.push(
-                            "uniform particle volume (no mass/density or volume arrays)".into(),
-                        );
-                        vec![s * s * s; n]
-                    }
-                }
-            }
-        };
-        let masses: Vec<f64> = match spec.mass.as_deref() {
-            Some(name) => array(ds, name)?.values.clone(),
-            None => match (
-                first_of(ds, &["mass", "m"]),
-                first_of(ds, &["density", "rho"]),
-            ) {
-                (Some(m), _) => m.values.clone(),
-                (None, Some(d)) => volumes.iter().zip(&d.values).map(|(v, r)| v * r).collect(),
-                _ => volumes.clone(),
+                _ => volume_at(ds, spec, &spacing, &mut Vec::new())?,
             },
         };
         if let Some(&i) = far.first() {
-            let x = ds.points[i];
-            notes.push(format!(
-                "warning: {} of {} particles lie far outside the rest (e.g. particle {i} at \
-                 ({:.3e}, {:.3e}, {:.3e})); they are rendered, and an automatic camera frames \
-                 them too: remove them, or set the camera",
-                far.len(),
-                keep.len(),
-                x[0],
-                x[1],
-                x[2]
-            ));
+            notes.push(far_outlier_warning(ds.points[i], i, far.len(), kept));
         }
         let mut p = Particles {
             notes,
-            skipped_nonfinite: n - keep.len(),
-            ..Default::default()
+            skipped_nonfinite: n - kept,
+            positions: Vec::with_capacity(kept),
+            radii: Vec::with_capacity(kept),
+            volumes: Vec::with_capacity(kept),
+            masses: Vec::with_capacity(kept),
+            values: Vec::with_capacity(kept),
         };
-        for &i in &keep {
-            let h = radii[i];
+        for i in (0..n).filter(|&i| finite(i)) {
+            let (h, v, m, a) = (radii(i), volumes(i), masses(i), values(i));
             if !(h.is_finite() && h > 0.0) {
                 return Err(ParticleError::BadRadius {
                     file,
@@ -483,7 +579,6 @@ impl Particles {
                     value: h,
                 });
             }
-            let v = volumes[i];
             if !(v.is_finite() && v > 0.0) {
                 return Err(ParticleError::BadVolume {
                     file,
@@ -491,19 +586,14 @@ impl Particles {
                     value: v,
                 });
             }
-            let x = ds.points[i];
             single_precision(&file, i, true, &[("volume", v), ("support radius", h)])?;
-            single_precision(
-                &file,
-                i,
-                false,
-                &[("mass", masses[i]), ("value", values[i])],
-            )?;
+            single_precision(&file, i, false, &[("mass", m), ("value", a)])?;
+            let x = ds.points[i];
             p.positions.push([x[0] as f32, x[1] as f32, x[2] as f32]);
             p.radii.push(h as f32);
             p.volumes.push(v as f32);
-            p.masses.push(masses[i] as f32);
-            p.values.push(values[i] as f32);
+            p.masses.push(m as f32);
+            p.values.push(a as f32);
         }
         Ok(p)
     }
@@ -521,6 +611,19 @@ impl Particles {
             }
         }
         Ok(out)
+    }
+
+    /// The particles `keep` (indices, in the order given), without the notes.
+    pub fn select(&self, keep: &[usize]) -> Particles {
+        Particles {
+            positions: keep.iter().map(|&j| self.positions[j]).collect(),
+            radii: keep.iter().map(|&j| self.radii[j]).collect(),
+            volumes: keep.iter().map(|&j| self.volumes[j]).collect(),
+            masses: keep.iter().map(|&j| self.masses[j]).collect(),
+            values: keep.iter().map(|&j| self.values[j]).collect(),
+            skipped_nonfinite: 0,
+            notes: Vec::new(),
+        }
     }
 
     /// Number of particles.
