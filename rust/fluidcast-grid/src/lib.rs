@@ -65,23 +65,26 @@ pub struct ViewParticles {
     pub range: Option<(f64, f64)>,
 }
 
+/// Particle `j` in view space.
+pub fn view_particle(particles: &Particles, frame: &ViewFrame, j: usize) -> ViewParticle {
+    let p = particles.positions[j];
+    let v = frame.to_view(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+    ViewParticle {
+        c: v.to_array(),
+        h: particles.radii[j] as f64,
+        v: particles.volumes[j] as f64,
+        a: particles.values[j] as f64,
+        m: particles.masses[j] as f64,
+    }
+}
+
 /// Transforms particles to view space and finds near/far: far is the largest depth of any
 /// support, near the smallest (clamped to far·10⁻⁴ for a perspective view so that the log
 /// spacing stays finite).
 pub fn view_particles(particles: &Particles, frame: &ViewFrame) -> ViewParticles {
     let list: Vec<ViewParticle> = (0..particles.len())
         .into_par_iter()
-        .map(|j| {
-            let p = particles.positions[j];
-            let v = frame.to_view(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
-            ViewParticle {
-                c: v.to_array(),
-                h: particles.radii[j] as f64,
-                v: particles.volumes[j] as f64,
-                a: particles.values[j] as f64,
-                m: particles.masses[j] as f64,
-            }
-        })
+        .map(|j| view_particle(particles, frame, j))
         .collect();
     let (zmin, zmax) = list
         .iter()
@@ -472,6 +475,15 @@ impl GridParams {
     }
 }
 
+/// Chunks of particles the grid counts and fills in parallel: enough for every thread,
+/// few enough that their per-bundle counts and slices (20 bytes a bundle each) stay near
+/// 80 MiB.
+fn chunk_count(particles: usize, bundles: usize) -> usize {
+    let want = rayon::current_num_threads() * 4;
+    let fit = (4 << 20) / bundles.max(1);
+    want.min(fit).clamp(1, particles.max(1))
+}
+
 /// The sparse perspective grid of one view.
 #[derive(Debug, Clone)]
 pub struct PerspectiveGrid {
@@ -545,35 +557,57 @@ impl PerspectiveGrid {
         grid.cells_z = (depths.len() / dz) as u32;
 
         // Footprint of each particle: bundle rectangle and cell depth range (inclusive).
-        let feet: Vec<Option<[u32; 6]>> = grid
-            .particles
-            .par_iter()
-            .map(|p| {
-                let r = screen_rect(frame, p, near, far)?;
-                let k = depths.indices_within(p.c[2] - p.h, p.c[2] + p.h);
-                if k.is_empty() {
-                    return None;
-                }
-                Some([
-                    r[0] / d,
-                    (r[1] - 1) / d,
-                    r[2] / d,
-                    (r[3] - 1) / d,
-                    (k.start / dz) as u32,
-                    ((k.end - 1) / dz) as u32,
-                ])
-            })
-            .collect();
-        grid.particles_visible = feet.iter().flatten().count();
-
-        // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle ...
-        let mut offsets = vec![0usize; nb + 1];
-        for f in feet.iter().flatten() {
-            let nz = (f[5] - f[4] + 1) as usize;
+        // Computed where needed, twice, rather than stored: 28 bytes a particle.
+        let foot = |p: &ViewParticle| -> Option<[u32; 6]> {
+            let r = screen_rect(frame, p, near, far)?;
+            let k = depths.indices_within(p.c[2] - p.h, p.c[2] + p.h);
+            if k.is_empty() {
+                return None;
+            }
+            Some([
+                r[0] / d,
+                (r[1] - 1) / d,
+                r[2] / d,
+                (r[3] - 1) / d,
+                (k.start / dz) as u32,
+                ((k.end - 1) / dz) as u32,
+            ])
+        };
+        let each_pair = |f: &[u32; 6], pair: &mut dyn FnMut(usize, u32, bool)| {
             for y in f[2]..=f[3] {
                 for x in f[0]..=f[1] {
-                    offsets[(y * bx + x) as usize + 1] += nz;
+                    for z in f[4]..=f[5] {
+                        pair((y * bx + x) as usize, z, z < f[5]);
+                    }
                 }
+            }
+        };
+
+        // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle, the
+        // particles in chunks counted in parallel: each chunk writes its pairs from its own
+        // start in each bundle, so the pairs lie in particle order as a sequential pass puts
+        // them.
+        let n = grid.particles.len();
+        let chunks = chunk_count(n, nb);
+        let chunk_len = n.div_ceil(chunks).max(1);
+        let counts: Vec<(Vec<u32>, usize)> = grid
+            .particles
+            .par_chunks(chunk_len)
+            .map(|ps| {
+                let mut c = vec![0u32; nb];
+                let mut visible = 0;
+                for f in ps.iter().filter_map(foot) {
+                    visible += 1;
+                    each_pair(&f, &mut |b, _, _| c[b] += 1);
+                }
+                (c, visible)
+            })
+            .collect();
+        grid.particles_visible = counts.iter().map(|c| c.1).sum();
+        let mut offsets = vec![0usize; nb + 1];
+        for (c, _) in &counts {
+            for (o, &k) in offsets[1..].iter_mut().zip(c) {
+                *o += k as usize;
             }
         }
         for b in 0..nb {
@@ -591,21 +625,34 @@ impl PerspectiveGrid {
             },
             pairs.saturating_mul(PAIR_BYTES),
         )?;
+        // Each chunk's own slice of each bundle's keys.
         let mut keys = vec![0u64; offsets[nb]];
-        let mut fill = offsets.clone();
-        for (j, f) in feet.iter().enumerate() {
-            let Some(f) = f else { continue };
-            for y in f[2]..=f[3] {
-                for x in f[0]..=f[1] {
-                    let b = (y * bx + x) as usize;
-                    for z in f[4]..=f[5] {
-                        let bit = (z < f[5]) as u64;
-                        keys[fill[b]] = ((z as u64) << 33) | (bit << 32) | j as u64;
-                        fill[b] += 1;
-                    }
-                }
+        let mut own: Vec<Vec<&mut [u64]>> =
+            (0..counts.len()).map(|_| Vec::with_capacity(nb)).collect();
+        let mut rest = keys.as_mut_slice();
+        for b in 0..nb {
+            for (c, (count, _)) in own.iter_mut().zip(&counts) {
+                let (a, r) = rest.split_at_mut(count[b] as usize);
+                c.push(a);
+                rest = r;
             }
         }
+        drop(counts);
+        grid.particles
+            .par_chunks(chunk_len)
+            .zip(own.into_par_iter())
+            .enumerate()
+            .for_each(|(ci, (ps, mut slices))| {
+                let mut used = vec![0u32; nb];
+                for (k, p) in ps.iter().enumerate() {
+                    let Some(f) = foot(p) else { continue };
+                    let j = (ci * chunk_len + k) as u64;
+                    each_pair(&f, &mut |b, z, bit| {
+                        slices[b][used[b] as usize] = ((z as u64) << 33) | ((bit as u64) << 32) | j;
+                        used[b] += 1;
+                    });
+                }
+            });
         // ... then by (cell, merge bit, particle) within each bundle, in parallel.
         let mut slices: Vec<&mut [u64]> = Vec::with_capacity(nb);
         let mut rest = keys.as_mut_slice();

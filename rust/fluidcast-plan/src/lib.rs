@@ -164,7 +164,8 @@ pub struct PlanStats {
 }
 
 impl PlanStats {
-    fn add(&mut self, o: &PlanStats) {
+    /// Adds another plan's counts (another part of the same view).
+    pub fn add(&mut self, o: &PlanStats) {
         self.cells += o.cells;
         for (a, b) in self.level_cells.iter_mut().zip(&o.level_cells) {
             *a += b;
