@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::{compare, Image};
-use fluidcast_io::Input;
+use fluidcast_io::{Arrays, Input};
 use fluidcast_render::{
     render_adaptive, render_object_space, render_perspective_grid, render_reference, RenderStats,
     SURFACE_THRESHOLD,
@@ -160,7 +160,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut surface_ms: Vec<f64> = Vec::new();
     for &fi in &frames {
         let file = &all[fi].1;
-        let ds = input.read(file)?;
+        let ds = input.read_with(file, &Arrays::Named(spec.arrays()))?;
         let particles = Particles::from_dataset(&ds, &spec)?;
         particles_n = particles_n.max(particles.len());
         // View-independent: once per time step, reused by every view (as the VTK mapper does).

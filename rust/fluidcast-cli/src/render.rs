@@ -4,15 +4,17 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
-use fluidcast_io::Input;
-use fluidcast_render::{render_perspective_grid, render_reference, RenderParams, RenderStats};
+use fluidcast_io::{Arrays, Input};
+use fluidcast_render::{
+    render_in_tiles, render_perspective_grid, render_reference, RenderParams, RenderStats,
+};
 use fluidcast_sph::{ParticleSpec, Particles};
 use fluidcast_view::{Camera, TransferFunction};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
-use crate::surface::SurfaceArgs;
+use crate::surface::{IsoSource, SurfaceArgs};
 use crate::view::{Mode, SamplingArgs, ViewArgs};
 use fluidcast_backend::{Backend, Renderer};
 
@@ -57,6 +59,60 @@ pub struct RenderArgs {
     /// output always carries these as channels error_bound, level and superpixel.
     #[arg(long)]
     aovs: bool,
+    #[command(flatten)]
+    split: SplitArgs,
+}
+
+/// Rendering a view in screen tiles, to bound memory.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct SplitArgs {
+    /// The most memory the process may hold while a view renders (bytes, or with a K, M, G
+    /// or T suffix, powers of 1024): the view is rendered in as many screen tiles as that
+    /// needs, each with only the particles that reach it, to the same image. Reading the file
+    /// and the particles themselves come first and are not split: a limit below what they
+    /// hold is an error that says how much they need.
+    #[arg(long, value_parser = parse_memory_limit)]
+    pub memory_limit: Option<u64>,
+    /// Render each view in at least this many screen tiles (the same image; less memory,
+    /// a little more time).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub tiles: Option<u32>,
+}
+
+fn parse_memory_limit(s: &str) -> Result<u64, String> {
+    fluidcast_mem::parse_size(s)
+        .filter(|&b| b > 0)
+        .ok_or_else(|| format!("'{s}' is not a size: give bytes, or a number with K, M, G or T"))
+}
+
+impl SplitArgs {
+    /// The screen tiles a view of `particles` renders in at `width × height`: `--tiles`, else
+    /// as many as `--memory-limit` needs beside what the process holds now, else 1.
+    pub fn tiles(&self, particles: &Particles, width: u32, height: u32) -> Result<u32> {
+        let Some(limit) = self.memory_limit else {
+            return Ok(self.tiles.unwrap_or(1));
+        };
+        let Some(held) = fluidcast_mem::resident() else {
+            bail!("--memory-limit needs the process' memory use, which this system does not report (/proc/self/status); use --tiles");
+        };
+        // The image, its depth and AOV planes, and the tiles' own images.
+        let image = u64::from(width) * u64::from(height) * 2 * 32;
+        let view = particles.len() as u64 * fluidcast_render::VIEW_BYTES_PER_PARTICLE;
+        let spare = limit.saturating_sub(held + image);
+        // A tile holds at least one bundle row's particles: fewer than 1/8 of the view's
+        // working memory per tile is not a promise the tiles can keep.
+        if spare < view / 64 {
+            bail!(
+                "--memory-limit {}: the particles and what the process holds already take {},                  and rendering in tiles needs about {} more (at least {} per tile); raise the limit",
+                fluidcast_mem::Bytes(limit),
+                fluidcast_mem::Bytes(held),
+                fluidcast_mem::Bytes(image + view / 64),
+                fluidcast_mem::Bytes(view / 64)
+            );
+        }
+        let n = view.div_ceil(spare.max(1)).max(1);
+        Ok((n as u32).max(self.tiles.unwrap_or(1)))
+    }
 }
 
 /// Renders one frame with the chosen renderer: the reference renderer, the perspective grid
@@ -67,9 +123,26 @@ pub fn render_frame(
     camera: &Camera,
     tf: &TransferFunction,
     params: &RenderParams,
-    (mode, cell): (Mode, u32),
+    (mode, cell, tiles): (Mode, u32, u32),
     renderer: &Renderer,
 ) -> Result<(Image, RenderStats)> {
+    if tiles > 1 {
+        // The perspective grid interpolates between columns of `cell` pixels and takes
+        // central differences across them: a tile also needs its neighbours' particles.
+        let margin = if mode == Mode::PerspectiveGrid {
+            3 * cell
+        } else {
+            0
+        };
+        return render_in_tiles(
+            particles,
+            surface,
+            camera,
+            params,
+            (tiles, margin),
+            |p, s, prm| render_frame(p, s, camera, tf, prm, (mode, cell, 1), renderer),
+        );
+    }
     Ok(match mode {
         Mode::Reference => render_reference(particles, camera, tf, params)?,
         Mode::PerspectiveGrid => render_perspective_grid(particles, camera, tf, params, cell)?,
@@ -237,6 +310,10 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
     let mut v = json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
            "samples": s.samples, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
            "image": {"width": s.width, "height": s.height}});
+    // The process' peak resident memory so far (all frames up to this one).
+    if let Some(b) = fluidcast_mem::peak_resident() {
+        v["peak_memory_bytes"] = json!(b);
+    }
     if let Some(p) = &s.plan {
         v["grid"] = json!({"bundles": s.bundles, "cells": s.cells, "particle_cell_pairs": s.pairs});
         if s.gpu_memory_bytes > 0 {
@@ -296,9 +373,20 @@ struct Recipe<'a> {
     array: Option<&'a str>,
 }
 
+impl Recipe<'_> {
+    /// The point arrays a frame needs: the particles' and the iso-surface field's.
+    fn arrays(&self) -> Arrays {
+        let mut names = self.spec.arrays();
+        if let Ok(IsoSource::Other(q)) = self.surface.source(self.array) {
+            names.push(q.array);
+        }
+        Arrays::Named(names)
+    }
+}
+
 fn load(input: &Input, file: &Path, recipe: &Recipe, index: usize) -> Result<Loaded> {
     let t_read = Instant::now();
-    let ds = input.read(file)?;
+    let ds = input.read_with(file, &recipe.arrays())?;
     let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
     let t_prep = Instant::now();
     let particles = Particles::from_dataset(&ds, recipe.spec)?;
@@ -367,8 +455,11 @@ fn report_frame(out: &Path, stats: &RenderStats) {
         .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "resample" | "raycast"))
         .map(|(_, v)| v)
         .sum();
+    let peak = fluidcast_mem::peak_resident()
+        .map(|b| format!(", peak memory {}", fluidcast_mem::Bytes(b)))
+        .unwrap_or_default();
     eprintln!(
-        "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms",
+        "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms{peak}",
         out.display(),
         stats.depth_samples,
         stats.samples,
@@ -475,7 +566,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         };
         params.surfaces = a.surface.surfaces(array, iso_values)?;
-        let how = (mode, a.sampling.grid_cell);
+        let tiles = a.split.tiles(&particles, params.width, params.height)?;
+        if tiles > 1 && progress.is_none() {
+            eprintln!("rendering in {tiles} screen tiles");
+        }
+        let how = (mode, a.sampling.grid_cell, tiles);
         let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, how, &renderer)
             .with_context(|| format!("rendering {}", file.display()))?;
         stats.stages.insert(0, ("read", read_ms));

@@ -358,3 +358,42 @@ fn a_damaged_frame_stops_a_prefetched_series_with_its_name() {
     assert!(p("f_000.png").exists());
     assert!(!p("f_001.png").exists() && !p("f_002.png").exists());
 }
+
+/// `--tiles` and `--memory-limit` render the same image in screen tiles, in every mode, and
+/// say so; a limit below what the particles already hold is an error with the numbers.
+#[test]
+fn tiles_and_memory_limits_keep_the_image() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    for (name, mode) in [
+        ("adaptive", &["--error-tolerance", "0.02"][..]),
+        ("reference", &["--mode", "reference"][..]),
+        (
+            "grid",
+            &["--mode", "perspective-grid", "--grid-cell", "2"][..],
+        ),
+    ] {
+        let whole = p(&format!("{name}.exr"));
+        render(&whole, mode);
+        let tiled = p(&format!("{name}_tiles.exr"));
+        let err = render(&tiled, &[mode, &["--tiles", "5"]].concat());
+        assert!(err.contains("rendering in 5 screen tiles"), "{err}");
+        assert_eq!(compare(&whole, &tiled), (0.0, 0.0), "{name}");
+    }
+    // A limit far above what the view needs: one render.
+    let whole = p("adaptive.exr");
+    let limited = p("limited.exr");
+    let err = render(
+        &limited,
+        &["--error-tolerance", "0.02", "--memory-limit", "64G"],
+    );
+    assert!(!err.contains("screen tiles"), "{err}");
+    assert_eq!(compare(&whole, &limited), (0.0, 0.0));
+    let (ok, err) = try_render(&limited, &["--memory-limit", "1M"]);
+    assert!(
+        !ok && err.contains("--memory-limit 1.0 MiB") && err.contains("raise the limit"),
+        "{err}"
+    );
+    let (ok, err) = try_render(&limited, &["--memory-limit", "lots"]);
+    assert!(!ok && err.contains("'lots' is not a size"), "{err}");
+}

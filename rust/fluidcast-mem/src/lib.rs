@@ -130,6 +130,20 @@ pub fn budget() -> Option<(u64, &'static str)> {
     best
 }
 
+/// The most physical memory this process has held so far (`VmHWM`, its peak resident set,
+/// in bytes); `None` where `/proc/self/status` cannot be read (not Linux).
+pub fn peak_resident() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    proc_value(&s, "VmHWM:")
+}
+
+/// The physical memory this process holds now (`VmRSS`, bytes); `None` where
+/// `/proc/self/status` cannot be read (not Linux).
+pub fn resident() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    proc_value(&s, "VmRSS:")
+}
+
 /// Checks that `needed` bytes fit in the budget; `what` says what they are for.
 pub fn check(what: impl FnOnce() -> String, needed: u64) -> Result<(), MemError> {
     match budget() {

@@ -26,6 +26,7 @@ mod raycast;
 mod reference;
 mod span;
 mod surface;
+mod tiles;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -42,6 +43,7 @@ pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
+pub use tiles::{render_in_tiles, tile_rects, VIEW_BYTES_PER_PARTICLE};
 
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{CameraError, Lighting};
