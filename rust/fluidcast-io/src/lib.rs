@@ -242,7 +242,7 @@ pub struct Dataset {
     pub field_data: Vec<DataArray>,
     /// Point arrays the file has but the read did not decode ([`Arrays::Named`]), so that
     /// an error about a missing array can still list what the file holds.
-    pub undecoded: Vec<String>,
+    pub undecoded: Vec<(String, usize)>,
 }
 
 impl Dataset {
@@ -306,6 +306,81 @@ pub fn read_dataset_with(path: impl AsRef<Path>, arrays: &Arrays) -> Result<Data
 /// format. The entry point for fuzzing and for data that is not on disk.
 pub fn parse_dataset(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     parse_as(Format::of(path)?, bytes, path, &Arrays::All)
+}
+
+/// A particle file opened for reading one array at a time, so that what a render keeps of
+/// an array (single precision, the particles' order) replaces it before the next one is
+/// decoded: appended `.vtu`/`.vtp` files (what SPH codes and ParaView write) are read by
+/// byte range, each array when asked for; other files are read at once (the arrays given).
+pub enum LazyDataset {
+    Xml(xml::LazyXml),
+    Read(Dataset),
+}
+
+/// Opens `path` for reading one array at a time ([`LazyDataset`]); `arrays`: what a file
+/// that must be read at once keeps.
+pub fn open_lazy(path: impl AsRef<Path>, arrays: &Arrays) -> Result<LazyDataset, ReadError> {
+    let path = path.as_ref();
+    let regular = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+    match Format::of(path)? {
+        Format::Xml if regular => Ok(LazyDataset::Xml(xml::LazyXml::open(path)?)),
+        _ => Ok(LazyDataset::Read(read_dataset_with(path, arrays)?)),
+    }
+}
+
+impl LazyDataset {
+    pub fn path(&self) -> &Path {
+        match self {
+            LazyDataset::Xml(x) => x.path(),
+            LazyDataset::Read(d) => &d.path,
+        }
+    }
+
+    pub fn num_points(&self) -> usize {
+        match self {
+            LazyDataset::Xml(x) => x.num_points(),
+            LazyDataset::Read(d) => d.points.len(),
+        }
+    }
+
+    pub fn field_data(&self) -> &[DataArray] {
+        match self {
+            LazyDataset::Xml(x) => x.field_data(),
+            LazyDataset::Read(d) => &d.field_data,
+        }
+    }
+
+    /// The point arrays a read would keep, as (name, components), decoded or not.
+    pub fn point_arrays(&self) -> Vec<(String, usize)> {
+        match self {
+            LazyDataset::Xml(x) => x.point_arrays(),
+            LazyDataset::Read(d) => d
+                .point_data
+                .iter()
+                .map(|a| (a.name.clone(), a.num_components))
+                .collect(),
+        }
+    }
+
+    /// The points, decoded now (borrowed from a file read at once).
+    pub fn points(&self) -> Result<std::borrow::Cow<'_, [[f64; 3]]>, ReadError> {
+        match self {
+            LazyDataset::Xml(x) => x.points().map(std::borrow::Cow::Owned),
+            LazyDataset::Read(d) => Ok(std::borrow::Cow::Borrowed(&d.points)),
+        }
+    }
+
+    /// Point array `name`, decoded now; `None` when the file has no such array (in every
+    /// piece, with one number of components).
+    pub fn point_array(
+        &self,
+        name: &str,
+    ) -> Result<Option<std::borrow::Cow<'_, DataArray>>, ReadError> {
+        match self {
+            LazyDataset::Xml(x) => Ok(x.point_array(name)?.map(std::borrow::Cow::Owned)),
+            LazyDataset::Read(d) => Ok(d.point_array(name).map(std::borrow::Cow::Borrowed)),
+        }
+    }
 }
 
 /// Which point-data arrays a read decodes.
@@ -379,7 +454,8 @@ fn parse_as(
         .into_iter()
         .partition(|a| arrays.wants(&a.name));
     ds.point_data = kept;
-    ds.undecoded.extend(dropped.into_iter().map(|a| a.name));
+    ds.undecoded
+        .extend(dropped.into_iter().map(|a| (a.name, a.num_components)));
     validate(&ds)?;
     Ok(ds)
 }
@@ -479,6 +555,15 @@ impl Input {
     /// Reads one of [`Input::frames`]' files; an error names the `.pvd` that listed it.
     pub fn read(&self, file: &Path) -> Result<Dataset, ReadError> {
         self.read_with(file, &Arrays::All)
+    }
+
+    /// Opens one of [`Input::frames`]' files for reading one array at a time
+    /// ([`open_lazy`]); an error opening it names the `.pvd` that listed it.
+    pub fn open_lazy(&self, file: &Path, arrays: &Arrays) -> Result<LazyDataset, ReadError> {
+        match self {
+            Input::File(_) => open_lazy(file, arrays),
+            Input::Series(c) => open_lazy(file, arrays).map_err(|e| e.listed_in(&c.path)),
+        }
     }
 
     /// [`Input::read`] decoding only the point arrays `arrays` selects.

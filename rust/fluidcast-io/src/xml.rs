@@ -10,7 +10,9 @@
 //! by garbage) is an error; integer values outside their type's range are errors.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::fs::File;
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
 
 use quick_xml::events::{BytesStart, Event};
 
@@ -430,13 +432,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
     let (head, mut appended) = split_appended(bytes).map_err(err)?;
     let h = parse_head(head, appended.is_some()).map_err(err)?;
     if let Some(app) = appended.as_mut() {
-        app.offsets = h
-            .decls
-            .iter()
-            .filter(|d| d.attrs.get("format").is_some_and(|f| f == "appended"))
-            .filter_map(|d| d.attrs.get("offset").and_then(|s| s.trim().parse().ok()))
-            .collect();
-        app.offsets.sort_unstable();
+        app.offsets = appended_offsets(&h.decls);
     }
     let ctx = file_ctx(&h.file_attrs).map_err(err)?;
     let mut pieces = h.pieces;
@@ -453,7 +449,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
         let name = d.attrs.get("Name").map_or("", String::as_str);
         if d.section == Section::PointData && !arrays.wants(name) {
             if d.piece == 0 {
-                undecoded.push(name.to_string());
+                undecoded.push((name.to_string(), components_of(&d)));
             }
             continue;
         }
@@ -695,4 +691,291 @@ fn parse_ascii(text: &[u8], st: ScalarType) -> Result<Vec<f64>, String> {
     s.split_ascii_whitespace()
         .map(|tok| parse_token(tok, st))
         .collect()
+}
+
+/// A `.vtu`/`.vtp` file read one array at a time ([`crate::LazyDataset`]): the XML head is
+/// parsed when the file is opened; an appended array is read from the file, its own byte
+/// range only, each time it is asked for; an inline array is decoded from the head. A
+/// render then holds one array's bytes at a time, not the file.
+pub struct LazyXml {
+    path: PathBuf,
+    kind: DatasetKind,
+    ctx: Ctx,
+    /// Points per piece.
+    pieces: Vec<usize>,
+    /// The points' and point data's declarations.
+    decls: Vec<ArrayDecl>,
+    field_data: Vec<DataArray>,
+    appended: Option<AppendedFile>,
+}
+
+/// Where a file's appended data lies: its first byte's position in the file, its length
+/// less the closing tags, its encoding and every array's offset (sorted).
+struct AppendedFile {
+    start: u64,
+    end: usize,
+    base64: bool,
+    offsets: Vec<usize>,
+}
+
+/// Bytes of a file's end read to find `</AppendedData></VTKFile>`.
+const TAIL_BYTES: usize = 4096;
+
+/// Reads the file's head: up to the appended data's `_` marker, or all of it when there is
+/// no appended data. `Some(tag)` when there is.
+fn read_head(f: &mut File, len: u64) -> Result<(Vec<u8>, Option<AppendedTag>), ReadErrorKind> {
+    let mut head = Vec::new();
+    let mut chunk = 1u64 << 16;
+    loop {
+        let before = head.len();
+        let want = chunk.min(len.saturating_sub(before as u64));
+        fluidcast_mem::check(|| "the file's XML head".into(), before as u64 + want)
+            .map_err(|e| ReadErrorKind::TooLarge(e.to_string()))?;
+        (&mut *f).take(want).read_to_end(&mut head)?;
+        let at_end = head.len() as u64 >= len || head.len() == before;
+        match appended_tag(&head) {
+            Ok(Some(tag)) => return Ok((head, Some(tag))),
+            Ok(None) if at_end => return Ok((head, None)),
+            Err(e) if at_end => return Err(e),
+            // No tag yet, or a tag cut at the chunk's end: read on.
+            _ => chunk = chunk.saturating_mul(2),
+        }
+    }
+}
+
+/// Reads `len` bytes at `pos`, refusing what does not fit the memory budget.
+fn read_range(f: &File, pos: u64, len: usize, what: &str) -> Result<Vec<u8>, ReadErrorKind> {
+    fluidcast_mem::check(|| what.to_string(), len as u64)
+        .map_err(|e| ReadErrorKind::TooLarge(e.to_string()))?;
+    let mut buf = Vec::with_capacity(len);
+    let mut g = f;
+    g.seek(SeekFrom::Start(pos))?;
+    g.take(len as u64).read_to_end(&mut buf)?;
+    if buf.len() != len {
+        return Err(ReadErrorKind::Truncated(format!(
+            "{what}: {} of {len} bytes (the file changed while it was read?)",
+            buf.len()
+        )));
+    }
+    Ok(buf)
+}
+
+impl LazyXml {
+    /// Opens a regular `.vtu`/`.vtp` file: reads and checks its head and its field data.
+    pub fn open(path: &Path) -> Result<LazyXml, ReadError> {
+        let err = |k: ReadErrorKind| ReadError::new(path, k);
+        let mut f = File::open(path).map_err(|e| err(e.into()))?;
+        let len = f.metadata().map_err(|e| err(e.into()))?.len();
+        let (mut head, tag) = read_head(&mut f, len).map_err(err)?;
+        let appended = match &tag {
+            None => None,
+            Some(tag) => {
+                let data_len = usize::try_from(len - tag.data as u64).map_err(|_| {
+                    err(ReadErrorKind::TooLarge(
+                        "the appended data does not fit this machine's address space".into(),
+                    ))
+                })?;
+                let tail_len = data_len.min(TAIL_BYTES);
+                let tail = read_range(&f, len - tail_len as u64, tail_len, "the file's end")
+                    .map_err(err)?;
+                let closing = tail_len - appended_end(&tail).map_err(err)?;
+                head.truncate(tag.start);
+                Some(AppendedFile {
+                    start: tag.data as u64,
+                    end: data_len - closing,
+                    base64: tag.base64,
+                    offsets: Vec::new(),
+                })
+            }
+        };
+        let h = parse_head(&head, appended.is_some()).map_err(err)?;
+        drop(head);
+        let ctx = file_ctx(&h.file_attrs).map_err(err)?;
+        let mut lazy = LazyXml {
+            path: path.to_path_buf(),
+            kind: h.kind,
+            ctx,
+            pieces: h.pieces.iter().map(|p| p.num_points).collect(),
+            decls: Vec::new(),
+            field_data: Vec::new(),
+            appended,
+        };
+        if let Some(app) = lazy.appended.as_mut() {
+            app.offsets = appended_offsets(&h.decls);
+        }
+        for d in h.decls {
+            match d.section {
+                Section::Points | Section::PointData => lazy.decls.push(d),
+                Section::FieldData => {
+                    if let Some(a) = lazy.decode(&d, None, &f).map_err(err)? {
+                        lazy.field_data.push(a);
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(lazy)
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub fn kind(&self) -> DatasetKind {
+        self.kind
+    }
+
+    /// Points of all pieces.
+    pub fn num_points(&self) -> usize {
+        self.pieces.iter().sum()
+    }
+
+    pub fn field_data(&self) -> &[DataArray] {
+        &self.field_data
+    }
+
+    /// The point arrays every piece has with the same number of components (those a full
+    /// read keeps), as (name, components), in the first piece's order.
+    pub fn point_arrays(&self) -> Vec<(String, usize)> {
+        let of_piece = |i: usize| {
+            self.decls
+                .iter()
+                .filter(move |d| d.section == Section::PointData && d.piece == i)
+                .map(|d| (name_of(d).to_string(), components_of(d)))
+        };
+        let mut names: Vec<(String, usize)> = of_piece(0).collect();
+        for i in 1..self.pieces.len() {
+            let piece: Vec<(String, usize)> = of_piece(i).collect();
+            names.retain(|a| piece.contains(a));
+        }
+        names
+    }
+
+    /// Decodes an array's declaration, reading an appended payload from `f`.
+    fn decode(
+        &self,
+        d: &ArrayDecl,
+        expected_tuples: Option<usize>,
+        f: &File,
+    ) -> Result<Option<DataArray>, ReadErrorKind> {
+        let Some(app) = self
+            .appended
+            .as_ref()
+            .filter(|_| d.attrs.get("format").is_some_and(|f| f == "appended"))
+        else {
+            return read_array(d, expected_tuples, self.ctx, None);
+        };
+        let off: usize = d
+            .attrs
+            .get("offset")
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(usize::MAX);
+        let next = app
+            .offsets
+            .iter()
+            .copied()
+            .find(|&o| o > off)
+            .unwrap_or(app.end);
+        let bytes = if off <= next {
+            read_range(f, app.start + off as u64, next - off, "an array's data")?
+        } else {
+            Vec::new() // an offset past the end: read_array says so
+        };
+        let part = Appended {
+            data: &bytes,
+            first: off.min(next),
+            base64: app.base64,
+            end: next,
+            offsets: app.offsets.clone(),
+        };
+        read_array(d, expected_tuples, self.ctx, Some(&part))
+    }
+
+    /// The declarations of `section` named `name` (any name for the points), one per piece,
+    /// or `None` when a piece has none.
+    fn per_piece(&self, section: Section, name: &str) -> Option<Vec<&ArrayDecl>> {
+        (0..self.pieces.len())
+            .map(|i| {
+                self.decls.iter().find(|d| {
+                    d.piece == i
+                        && d.section == section
+                        && (section == Section::Points || name_of(d) == name)
+                })
+            })
+            .collect()
+    }
+
+    /// All pieces' points, decoded now.
+    pub fn points(&self) -> Result<Vec<[f64; 3]>, ReadError> {
+        let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
+        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        let mut points: Vec<[f64; 3]> = Vec::new();
+        for (i, &n) in self.pieces.iter().enumerate() {
+            let d = self
+                .decls
+                .iter()
+                .find(|d| d.piece == i && d.section == Section::Points);
+            match d {
+                Some(d) => {
+                    if let Some(a) = self.decode(d, Some(n), &f).map_err(err)? {
+                        points.extend(crate::xyz(&a.values));
+                    }
+                }
+                None if n == 0 => {}
+                None => {
+                    return Err(err(ReadErrorKind::Format(format!(
+                        "piece {i} has {n} points but no <Points> array"
+                    ))))
+                }
+            }
+        }
+        Ok(points)
+    }
+
+    /// The point array `name` of all pieces, decoded now; `None` when a piece lacks it or
+    /// the pieces' component counts differ.
+    pub fn point_array(&self, name: &str) -> Result<Option<DataArray>, ReadError> {
+        let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
+        let Some(decls) = self.per_piece(Section::PointData, name) else {
+            return Ok(None);
+        };
+        if !self.point_arrays().iter().any(|(n, _)| n == name) {
+            return Ok(None);
+        }
+        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        let mut out: Option<DataArray> = None;
+        for (d, &n) in decls.into_iter().zip(&self.pieces) {
+            let Some(a) = self.decode(d, Some(n), &f).map_err(err)? else {
+                return Ok(None);
+            };
+            match out.as_mut() {
+                None => out = Some(a),
+                Some(o) => o.values.extend_from_slice(&a.values),
+            }
+        }
+        Ok(out)
+    }
+}
+
+fn name_of(d: &ArrayDecl) -> &str {
+    d.attrs.get("Name").map_or("", String::as_str)
+}
+
+/// Declared components (1 when not given or not a number: decoding checks it).
+fn components_of(d: &ArrayDecl) -> usize {
+    d.attrs
+        .get("NumberOfComponents")
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or(1)
+}
+
+/// Every appended array's offset, sorted.
+fn appended_offsets(decls: &[ArrayDecl]) -> Vec<usize> {
+    let mut offsets: Vec<usize> = decls
+        .iter()
+        .filter(|d| d.attrs.get("format").is_some_and(|f| f == "appended"))
+        .filter_map(|d| d.attrs.get("offset").and_then(|s| s.trim().parse().ok()))
+        .collect();
+    offsets.sort_unstable();
+    offsets
 }
