@@ -3,9 +3,8 @@
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_io::Dataset;
 use fluidcast_render::{IsoField, Surfaces};
-use fluidcast_sph::{Particles, Quantity};
+use fluidcast_sph::{ParticleSource, Particles, Quantity};
 use fluidcast_view::{Light, Lighting};
 
 #[derive(clap::Args, Debug, Clone)]
@@ -125,7 +124,11 @@ impl SurfaceArgs {
 
     /// The values of the iso field's array in `ds` when it is another array than the
     /// rendered one (`array`), per kept particle.
-    pub fn other_values(&self, array: Option<&str>, ds: &Dataset) -> Result<Option<Arc<[f32]>>> {
+    pub fn other_values(
+        &self,
+        array: Option<&str>,
+        ds: &impl ParticleSource,
+    ) -> Result<Option<Arc<[f32]>>> {
         match self.source(array)? {
             IsoSource::Other(q) if self.on() => Ok(Some(Particles::values_of(ds, &q)?.into())),
             _ => Ok(None),

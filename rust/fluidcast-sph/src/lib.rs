@@ -13,6 +13,6 @@ pub use field::{FieldKind, FieldSample};
 pub use grid::NeighbourGrid;
 pub use kernel::Kernel;
 pub use particles::{
-    suggest_support_radius, Component, ParticleError, ParticleSpec, Particles, Quantity,
-    RadiusSource, VolumeSource,
+    suggest_support_radius, Component, ParticleError, ParticleSource, ParticleSpec, Particles,
+    Quantity, RadiusSource, VolumeSource,
 };

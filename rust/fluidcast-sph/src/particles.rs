@@ -1,6 +1,8 @@
 use std::path::{Path, PathBuf};
 
-use fluidcast_io::{DataArray, Dataset};
+use std::borrow::Cow;
+
+use fluidcast_io::{DataArray, Dataset, LazyDataset, ReadError};
 use rayon::prelude::*;
 
 use crate::grid::bounds;
@@ -186,6 +188,9 @@ pub enum ParticleError {
     },
     #[error("{file}: {message}")]
     Other { file: PathBuf, message: String },
+    /// Reading an array of a file opened for reading one array at a time.
+    #[error(transparent)]
+    Read(#[from] ReadError),
 }
 
 /// Particles ready for reconstruction and rendering: structure of arrays, world space,
@@ -208,18 +213,82 @@ pub struct Particles {
     pub notes: Vec<String>,
 }
 
-fn available(ds: &Dataset) -> String {
-    let v: Vec<String> = ds
-        .point_data
-        .iter()
-        .map(|a| {
-            if a.num_components > 1 {
-                format!("{} ({} comp.)", a.name, a.num_components)
+/// What particles are built from: a data set in memory ([`Dataset`]) or a file read one
+/// array at a time ([`LazyDataset`]), so that each array is decoded, turned into the
+/// particles' single precision and dropped before the next.
+pub trait ParticleSource {
+    /// The file, for messages.
+    fn path(&self) -> &Path;
+    fn num_points(&self) -> usize;
+    /// First value of a field-data array (e.g. `support_radius`).
+    fn field_scalar(&self, name: &str) -> Option<f64>;
+    /// Every point array, decoded or not, as (name, components).
+    fn arrays(&self) -> Vec<(String, usize)>;
+    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError>;
+    /// Point array `name`; `None` when there is none.
+    fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError>;
+}
+
+impl ParticleSource for Dataset {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+    fn num_points(&self) -> usize {
+        self.points.len()
+    }
+    fn field_scalar(&self, name: &str) -> Option<f64> {
+        Dataset::field_scalar(self, name)
+    }
+    fn arrays(&self) -> Vec<(String, usize)> {
+        self.point_data
+            .iter()
+            .map(|a| (a.name.clone(), a.num_components))
+            .chain(self.undecoded.iter().cloned())
+            .collect()
+    }
+    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError> {
+        Ok(Cow::Borrowed(&self.points))
+    }
+    fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError> {
+        Ok(self.point_array(name).map(Cow::Borrowed))
+    }
+}
+
+impl ParticleSource for LazyDataset {
+    fn path(&self) -> &Path {
+        LazyDataset::path(self)
+    }
+    fn num_points(&self) -> usize {
+        LazyDataset::num_points(self)
+    }
+    fn field_scalar(&self, name: &str) -> Option<f64> {
+        self.field_data()
+            .iter()
+            .find(|a| a.name == name)
+            .and_then(|a| a.values.first().copied())
+    }
+    fn arrays(&self) -> Vec<(String, usize)> {
+        self.point_arrays()
+    }
+    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError> {
+        Ok(LazyDataset::points(self)?)
+    }
+    fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError> {
+        Ok(self.point_array(name)?)
+    }
+}
+
+fn available(src: &impl ParticleSource) -> String {
+    let v: Vec<String> = src
+        .arrays()
+        .into_iter()
+        .map(|(name, nc)| {
+            if nc > 1 {
+                format!("{name} ({nc} comp.)")
             } else {
-                a.name.clone()
+                name
             }
         })
-        .chain(ds.undecoded.iter().cloned())
         .collect();
     if v.is_empty() {
         "none".into()
@@ -228,25 +297,25 @@ fn available(ds: &Dataset) -> String {
     }
 }
 
-fn array<'a>(ds: &'a Dataset, name: &str) -> Result<&'a DataArray, ParticleError> {
-    ds.point_array(name)
-        .ok_or_else(|| ParticleError::MissingArray {
-            file: ds.path.clone(),
-            name: name.into(),
-            available: available(ds),
-        })
+/// Point array `name`, or an error naming the file and what it has.
+fn array<'a>(
+    src: &'a impl ParticleSource,
+    name: &str,
+) -> Result<Cow<'a, DataArray>, ParticleError> {
+    src.array(name)?.ok_or_else(|| ParticleError::MissingArray {
+        file: src.path().to_path_buf(),
+        name: name.into(),
+        available: available(src),
+    })
 }
 
-fn first_of<'a>(ds: &'a Dataset, names: &[&str]) -> Option<&'a DataArray> {
+/// The first of `names` that is a one-component point array.
+fn first_of(src: &impl ParticleSource, names: &[&str]) -> Option<String> {
+    let list = src.arrays();
     names
         .iter()
-        .find_map(|n| ds.point_array(n).filter(|a| a.num_components == 1))
-}
-
-/// Extracts the selected component of `q` as one value per point.
-pub fn quantity_values(ds: &Dataset, q: &Quantity) -> Result<Vec<f64>, ParticleError> {
-    let at = quantity_at(ds, q)?;
-    Ok((0..ds.points.len()).map(at).collect())
+        .find(|n| list.iter().any(|(m, c)| m == *n && *c == 1))
+        .map(|n| n.to_string())
 }
 
 /// A far outlier lies beyond this many inter-quartile widths from the central half of
@@ -377,18 +446,20 @@ fn single_precision(
     Ok(())
 }
 
-/// One value per point index, computed when asked: the particles are built from the data
-/// set's arrays without a second full-length copy of each in double precision.
+/// One value per point index, computed when asked.
 type PerParticle<'a> = Box<dyn Fn(usize) -> f64 + 'a>;
 
-/// `scale · a[i]` of a one-component array.
+/// `scale · a[i]`.
 fn per_value(a: &DataArray, scale: f64) -> PerParticle<'_> {
     Box::new(move |i| a.values[i] * scale)
 }
 
-/// The selected component of `q` at each point (see [`quantity_values`]).
-fn quantity_at<'a>(ds: &'a Dataset, q: &Quantity) -> Result<PerParticle<'a>, ParticleError> {
-    let a = array(ds, &q.array)?;
+/// The component of `a` that `q` selects, at each point.
+fn component_at<'a>(
+    a: &'a DataArray,
+    q: &Quantity,
+    file: &Path,
+) -> Result<PerParticle<'a>, ParticleError> {
     let nc = a.num_components;
     let v = &a.values;
     Ok(match q.component {
@@ -403,7 +474,7 @@ fn quantity_at<'a>(ds: &'a Dataset, q: &Quantity) -> Result<PerParticle<'a>, Par
         Component::Index(k) if k < nc => Box::new(move |i| v[i * nc + k]),
         Component::Index(k) => {
             return Err(ParticleError::BadComponent {
-                file: ds.path.clone(),
+                file: file.to_path_buf(),
                 name: q.array.clone(),
                 ncomp: nc,
                 index: k,
@@ -412,101 +483,140 @@ fn quantity_at<'a>(ds: &'a Dataset, q: &Quantity) -> Result<PerParticle<'a>, Par
     })
 }
 
-/// Each particle's support radius under `spec`, with a note where it was chosen for the
-/// user; `kept` finite points and `spacing` (the mean nearest-neighbour distance) for the
-/// message and the suggestion when nothing gives a radius.
-fn radius_at<'a>(
-    ds: &'a Dataset,
-    spec: &ParticleSpec,
-    kept: usize,
-    spacing: &dyn Fn() -> Option<f64>,
-    notes: &mut Vec<String>,
-) -> Result<PerParticle<'a>, ParticleError> {
-    let h = match &spec.radius {
-        RadiusSource::Array { name, scale } => {
-            let a = array(ds, name)?;
-            if a.num_components != 1 {
-                return Err(ParticleError::Other {
-                    file: ds.path.clone(),
-                    message: format!("radius array '{name}' must have 1 component"),
-                });
-            }
-            return Ok(per_value(a, *scale));
-        }
-        RadiusSource::Constant(h) => *h,
-        RadiusSource::Auto => match ds.field_scalar("support_radius") {
-            Some(h) => {
-                notes.push(format!(
-                    "support radius {h} from the file's field data 'support_radius'"
-                ));
-                h
-            }
-            None => {
-                let h = spacing()
-                    .map(|s| 2.0 * s)
-                    .ok_or_else(|| no_spacing(ds, kept))?;
-                notes.push(format!(
-                    "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
-                ));
-                h
-            }
-        },
-    };
-    Ok(Box::new(move |_| h))
+/// The points with finite coordinates, in single precision, and what is learnt from all
+/// points while they are decoded: which are kept, the far outliers' warning and the mean
+/// spacing (when something needs it).
+struct Located {
+    kept: Vec<bool>,
+    count: usize,
+    positions: Vec<[f32; 3]>,
+    outliers: Option<String>,
+    spacing: Option<f64>,
+    /// The largest extent of the finite points' box (for a message).
+    spread: f64,
 }
 
-fn no_spacing(ds: &Dataset, kept: usize) -> ParticleError {
-    ParticleError::Other {
-        file: ds.path.clone(),
-        message: format!(
-            "cannot suggest a support radius: {kept} finite points with no measurable \
-             spacing between neighbours{}: give --support-radius",
-            ds.bounds()
-                .map(|(lo, hi)| format!(
-                    ", spread over {:.3e} world units",
-                    (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
-                ))
-                .unwrap_or_default()
-        ),
+fn locate(src: &impl ParticleSource, needs_spacing: bool) -> Result<Located, ParticleError> {
+    let file = src.path().to_path_buf();
+    let pts = src.points()?;
+    let n = pts.len();
+    if n == 0 {
+        return Err(ParticleError::NoPoints { file });
+    }
+    let kept: Vec<bool> = pts
+        .par_iter()
+        .map(|p| p.iter().all(|v| v.is_finite()))
+        .collect();
+    let count = kept.iter().filter(|&&k| k).count();
+    if count == 0 {
+        return Err(ParticleError::NoFinitePoints { file, count: n });
+    }
+    let far = far_outliers(&pts);
+    let outliers = far
+        .first()
+        .map(|&i| far_outlier_warning(pts[i], i, far.len(), count));
+    let spacing = if needs_spacing {
+        spacing_without(&pts, &far)
+    } else {
+        None
+    };
+    let positions: Vec<[f32; 3]> = pts
+        .iter()
+        .zip(&kept)
+        .filter(|(_, &k)| k)
+        .map(|(x, _)| [x[0] as f32, x[1] as f32, x[2] as f32])
+        .collect();
+    let (lo, hi) = bounds(&positions);
+    let spread = (0..3).map(|k| f64::from(hi[k] - lo[k])).fold(0.0, f64::max);
+    Ok(Located {
+        kept,
+        count,
+        positions,
+        outliers,
+        spacing,
+        spread,
+    })
+}
+
+/// `at(i)` of every kept point in single precision, each checked by `check(i, value)`.
+fn kept_values(
+    kept: &[bool],
+    count: usize,
+    at: impl Fn(usize) -> f64,
+    check: impl Fn(usize, f64) -> Result<(), ParticleError>,
+) -> Result<Vec<f32>, ParticleError> {
+    let mut out = Vec::with_capacity(count);
+    for i in (0..kept.len()).filter(|&i| kept[i]) {
+        let v = at(i);
+        check(i, v)?;
+        out.push(v as f32);
+    }
+    Ok(out)
+}
+
+/// How each particle's volume is found.
+enum Volume<'a> {
+    Ratio(Cow<'a, DataArray>, Cow<'a, DataArray>),
+    Array(Cow<'a, DataArray>),
+    Uniform(f64),
+}
+
+impl Volume<'_> {
+    fn at(&self, i: usize) -> f64 {
+        match self {
+            Volume::Ratio(m, d) => m.values[i] / d.values[i],
+            Volume::Array(v) => v.values[i],
+            Volume::Uniform(v) => *v,
+        }
     }
 }
 
-/// Each particle's volume under `spec`, with a note where it was chosen automatically.
-fn volume_at<'a>(
-    ds: &'a Dataset,
-    spec: &ParticleSpec,
-    spacing: &dyn Fn() -> Option<f64>,
-    notes: &mut Vec<String>,
-) -> Result<PerParticle<'a>, ParticleError> {
-    let mass_density = |m: &'a DataArray, d: &'a DataArray| -> PerParticle<'a> {
-        Box::new(move |i| m.values[i] / d.values[i])
+/// What the volume rule of `spec` needs: (mass and density, volume array) present.
+fn volume_arrays(src: &impl ParticleSource) -> (Option<(String, String)>, Option<String>) {
+    let md = first_of(src, &MASS_NAMES).zip(first_of(src, &DENSITY_NAMES));
+    (md, first_of(src, &VOLUME_NAMES))
+}
+
+fn needs_spacing(src: &impl ParticleSource, spec: &ParticleSpec) -> bool {
+    let radius =
+        matches!(spec.radius, RadiusSource::Auto) && src.field_scalar("support_radius").is_none();
+    let volume = match &spec.volume {
+        VolumeSource::Uniform => true,
+        VolumeSource::Auto => matches!(volume_arrays(src), (None, None)),
+        _ => false,
     };
-    let uniform = |s: Option<f64>| -> PerParticle<'a> {
-        let s = s.unwrap_or(1.0);
-        Box::new(move |_| s * s * s)
+    radius || volume
+}
+
+/// The volume rule of `spec`, with a note where it was chosen automatically.
+fn volume_rule<'a>(
+    src: &'a impl ParticleSource,
+    spec: &ParticleSpec,
+    spacing: Option<f64>,
+    notes: &mut Vec<String>,
+) -> Result<Volume<'a>, ParticleError> {
+    let uniform = || {
+        let s = spacing.unwrap_or(1.0);
+        Volume::Uniform(s * s * s)
     };
     Ok(match &spec.volume {
         VolumeSource::MassDensity { mass, density } => {
-            mass_density(array(ds, mass)?, array(ds, density)?)
+            Volume::Ratio(array(src, mass)?, array(src, density)?)
         }
-        VolumeSource::Array(name) => per_value(array(ds, name)?, 1.0),
-        VolumeSource::Uniform => uniform(spacing()),
-        VolumeSource::Auto => match (
-            first_of(ds, &MASS_NAMES),
-            first_of(ds, &DENSITY_NAMES),
-            first_of(ds, &VOLUME_NAMES),
-        ) {
-            (Some(m), Some(d), _) => {
-                notes.push(format!("particle volume = {} / {}", m.name, d.name));
-                mass_density(m, d)
+        VolumeSource::Array(name) => Volume::Array(array(src, name)?),
+        VolumeSource::Uniform => uniform(),
+        VolumeSource::Auto => match volume_arrays(src) {
+            (Some((m, d)), _) => {
+                notes.push(format!("particle volume = {m} / {d}"));
+                Volume::Ratio(array(src, &m)?, array(src, &d)?)
             }
-            (_, _, Some(v)) => {
-                notes.push(format!("particle volume from array '{}'", v.name));
-                per_value(v, 1.0)
+            (None, Some(v)) => {
+                notes.push(format!("particle volume from array '{v}'"));
+                Volume::Array(array(src, &v)?)
             }
-            _ => {
+            (None, None) => {
                 notes.push("uniform particle volume (no mass/density or volume arrays)".into());
-                uniform(spacing())
+                uniform()
             }
         },
     })
@@ -522,95 +632,159 @@ fn far_outlier_warning(x: [f64; 3], i: usize, count: usize, kept: usize) -> Stri
 }
 
 impl Particles {
-    /// Builds particles from a data set. Points with a NaN/infinite coordinate are skipped and
-    /// counted in `skipped_nonfinite`; bad radii or volumes of kept particles are errors.
+    /// Builds particles from a data set (see [`Particles::from_source`]).
     pub fn from_dataset(ds: &Dataset, spec: &ParticleSpec) -> Result<Particles, ParticleError> {
-        let file = ds.path.clone();
-        let n = ds.points.len();
-        if n == 0 {
-            return Err(ParticleError::NoPoints { file });
-        }
-        let finite = |i: usize| ds.points[i].iter().all(|v| v.is_finite());
-        let kept = (0..n).into_par_iter().filter(|&i| finite(i)).count();
-        if kept == 0 {
-            return Err(ParticleError::NoFinitePoints { file, count: n });
-        }
+        Particles::from_source(ds, spec)
+    }
+
+    /// Builds particles from `src`, one array at a time: the points, the rendered values,
+    /// the radii, the volumes and masses, each decoded (from a [`LazyDataset`]), turned
+    /// into single precision and dropped before the next. Points with a NaN/infinite
+    /// coordinate are skipped and counted in `skipped_nonfinite`; bad radii or volumes of
+    /// kept particles are errors (the first particle of the first array at fault).
+    pub fn from_source(
+        src: &impl ParticleSource,
+        spec: &ParticleSpec,
+    ) -> Result<Particles, ParticleError> {
+        let file = src.path().to_path_buf();
+        let at = locate(src, needs_spacing(src, spec))?;
+        let (kept, count) = (&at.kept, at.count);
         let mut notes = Vec::new();
-        let values: PerParticle = match &spec.quantity {
-            Some(q) => quantity_at(ds, q)?,
-            None => Box::new(|_| 1.0),
+        let values = match &spec.quantity {
+            Some(q) => {
+                let a = array(src, &q.array)?;
+                let v = component_at(&a, q, &file)?;
+                kept_values(kept, count, v, |i, a| {
+                    single_precision(&file, i, false, &[("value", a)])
+                })?
+            }
+            None => vec![1.0; count],
         };
-        // Outliers and the particle spacing are computed once, for the radius, the volume and
-        // the warning alike.
-        let far = far_outliers(&ds.points);
-        let spacing_cell = std::cell::OnceCell::new();
-        let spacing = || *spacing_cell.get_or_init(|| spacing_without(&ds.points, &far));
-        let radii = radius_at(ds, spec, kept, &spacing, &mut notes)?;
-        let volumes = volume_at(ds, spec, &spacing, &mut notes)?;
-        let masses: PerParticle = match spec.mass.as_deref() {
-            Some(name) => per_value(array(ds, name)?, 1.0),
-            None => match (first_of(ds, &MASS_NAMES), first_of(ds, &DENSITY_NAMES)) {
-                (Some(m), _) => per_value(m, 1.0),
-                (None, Some(d)) => {
-                    let v = volume_at(ds, spec, &spacing, &mut Vec::new())?;
-                    Box::new(move |i| v(i) * d.values[i])
+        let radii = Self::radii(src, spec, &at, &mut notes)?;
+        let volume = volume_rule(src, spec, at.spacing, &mut notes)?;
+        let volumes = kept_values(
+            kept,
+            count,
+            |i| volume.at(i),
+            |i, v| {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(ParticleError::BadVolume {
+                        file: file.clone(),
+                        index: i,
+                        value: v,
+                    });
                 }
-                _ => volume_at(ds, spec, &spacing, &mut Vec::new())?,
+                single_precision(&file, i, true, &[("volume", v)])
+            },
+        )?;
+        let mass_check = |i, m| single_precision(&file, i, false, &[("mass", m)]);
+        let masses = match spec.mass.as_deref() {
+            Some(name) => {
+                let m = array(src, name)?;
+                kept_values(kept, count, per_value(&m, 1.0), mass_check)?
+            }
+            None => match (first_of(src, &MASS_NAMES), first_of(src, &DENSITY_NAMES)) {
+                (Some(m), _) => {
+                    let m = array(src, &m)?;
+                    kept_values(kept, count, per_value(&m, 1.0), mass_check)?
+                }
+                (None, Some(d)) => {
+                    let d = array(src, &d)?;
+                    kept_values(kept, count, |i| volume.at(i) * d.values[i], mass_check)?
+                }
+                _ => kept_values(kept, count, |i| volume.at(i), mass_check)?,
             },
         };
-        if let Some(&i) = far.first() {
-            notes.push(far_outlier_warning(ds.points[i], i, far.len(), kept));
-        }
-        let mut p = Particles {
+        drop(volume);
+        notes.extend(at.outliers.clone());
+        Ok(Particles {
             notes,
-            skipped_nonfinite: n - kept,
-            positions: Vec::with_capacity(kept),
-            radii: Vec::with_capacity(kept),
-            volumes: Vec::with_capacity(kept),
-            masses: Vec::with_capacity(kept),
-            values: Vec::with_capacity(kept),
-        };
-        for i in (0..n).filter(|&i| finite(i)) {
-            let (h, v, m, a) = (radii(i), volumes(i), masses(i), values(i));
+            skipped_nonfinite: kept.len() - count,
+            positions: at.positions,
+            radii,
+            volumes,
+            masses,
+            values,
+        })
+    }
+
+    /// Each kept particle's support radius under `spec`, with a note where it was chosen
+    /// for the user.
+    fn radii(
+        src: &impl ParticleSource,
+        spec: &ParticleSpec,
+        at: &Located,
+        notes: &mut Vec<String>,
+    ) -> Result<Vec<f32>, ParticleError> {
+        let file = src.path().to_path_buf();
+        let check = |i: usize, h: f64| {
             if !(h.is_finite() && h > 0.0) {
                 return Err(ParticleError::BadRadius {
-                    file,
+                    file: file.clone(),
                     index: i,
                     value: h,
                 });
             }
-            if !(v.is_finite() && v > 0.0) {
-                return Err(ParticleError::BadVolume {
-                    file,
-                    index: i,
-                    value: v,
-                });
+            single_precision(&file, i, true, &[("support radius", h)])
+        };
+        let h = match &spec.radius {
+            RadiusSource::Array { name, scale } => {
+                let a = array(src, name)?;
+                if a.num_components != 1 {
+                    return Err(ParticleError::Other {
+                        file,
+                        message: format!("radius array '{name}' must have 1 component"),
+                    });
+                }
+                return kept_values(&at.kept, at.count, per_value(&a, *scale), check);
             }
-            single_precision(&file, i, true, &[("volume", v), ("support radius", h)])?;
-            single_precision(&file, i, false, &[("mass", m), ("value", a)])?;
-            let x = ds.points[i];
-            p.positions.push([x[0] as f32, x[1] as f32, x[2] as f32]);
-            p.radii.push(h as f32);
-            p.volumes.push(v as f32);
-            p.masses.push(m as f32);
-            p.values.push(a as f32);
-        }
-        Ok(p)
+            RadiusSource::Constant(h) => *h,
+            RadiusSource::Auto => match src.field_scalar("support_radius") {
+                Some(h) => {
+                    notes.push(format!(
+                        "support radius {h} from the file's field data 'support_radius'"
+                    ));
+                    h
+                }
+                None => {
+                    let h = at
+                        .spacing
+                        .map(|s| 2.0 * s)
+                        .ok_or_else(|| ParticleError::Other {
+                            file: file.clone(),
+                            message: format!(
+                                "cannot suggest a support radius: {} finite points with no \
+                             measurable spacing between neighbours, spread over {:.3e} world \
+                             units: give --support-radius",
+                                at.count, at.spread
+                            ),
+                        })?;
+                    notes.push(format!(
+                        "no support radius given: using {h:.6} (2 x mean particle spacing); set --support-radius or --radius-array"
+                    ));
+                    h
+                }
+            },
+        };
+        kept_values(&at.kept, at.count, |_| h, check)
     }
 
-    /// The values of quantity `q` of `ds` at the particles [`Particles::from_dataset`] keeps
-    /// (the points with finite coordinates), in their order: a second attribute beside the
-    /// rendered one (e.g. the field of an iso-surface), checked as the rendered one is.
-    pub fn values_of(ds: &Dataset, q: &Quantity) -> Result<Vec<f32>, ParticleError> {
-        let values = quantity_values(ds, q)?;
-        let mut out = Vec::new();
-        for (i, x) in ds.points.iter().enumerate() {
-            if x.iter().all(|v| v.is_finite()) {
-                single_precision(&ds.path, i, false, &[("value", values[i])])?;
-                out.push(values[i] as f32);
-            }
-        }
-        Ok(out)
+    /// The values of quantity `q` of `src` at the particles [`Particles::from_source`]
+    /// keeps (the points with finite coordinates), in their order: a second attribute beside
+    /// the rendered one (e.g. the field of an iso-surface), checked as the rendered one is.
+    pub fn values_of(src: &impl ParticleSource, q: &Quantity) -> Result<Vec<f32>, ParticleError> {
+        let kept: Vec<bool> = src
+            .points()?
+            .iter()
+            .map(|p| p.iter().all(|v| v.is_finite()))
+            .collect();
+        let count = kept.iter().filter(|&&k| k).count();
+        let a = array(src, &q.array)?;
+        let file = src.path();
+        let v = component_at(&a, q, file)?;
+        kept_values(&kept, count, v, |i, a| {
+            single_precision(file, i, false, &[("value", a)])
+        })
     }
 
     /// The particles `keep` (indices, in the order given), without the notes.
