@@ -85,33 +85,45 @@ fn parse_memory_limit(s: &str) -> Result<u64, String> {
         .ok_or_else(|| format!("'{s}' is not a size: give bytes, or a number with K, M, G or T"))
 }
 
+/// Less room than this for the tiles' working memory is refused: tiles of a few thousand
+/// particles would take far longer than they save.
+const MIN_TILE_BYTES: u64 = 16 << 20;
+
 impl SplitArgs {
-    /// The screen tiles a view of `particles` renders in at `width × height`: `--tiles`, else
-    /// as many as `--memory-limit` needs beside what the process holds now, else 1.
-    pub fn tiles(&self, particles: &Particles, width: u32, height: u32) -> Result<u32> {
+    /// The most particles a screen tile of a view of `particles` may hold at `width ×
+    /// height`: from `--tiles` and from `--memory-limit` (beside what the process holds now),
+    /// the smaller; `None`: one render.
+    pub fn max_tile_particles(
+        &self,
+        particles: &Particles,
+        width: u32,
+        height: u32,
+    ) -> Result<Option<usize>> {
+        let n = particles.len().max(1);
+        let by_count = self.tiles.map(|t| n.div_ceil(t as usize));
         let Some(limit) = self.memory_limit else {
-            return Ok(self.tiles.unwrap_or(1));
+            return Ok(by_count);
         };
         let Some(held) = fluidcast_mem::resident() else {
             bail!("--memory-limit needs the process' memory use, which this system does not report (/proc/self/status); use --tiles");
         };
-        // The image, its depth and AOV planes, and the tiles' own images.
+        // The image, its depth and AOV planes, and a tile's own image; what tiling keeps of
+        // every particle.
         let image = u64::from(width) * u64::from(height) * 2 * 32;
-        let view = particles.len() as u64 * fluidcast_render::VIEW_BYTES_PER_PARTICLE;
-        let spare = limit.saturating_sub(held + image);
-        // A tile holds at least one bundle row's particles: fewer than 1/8 of the view's
-        // working memory per tile is not a promise the tiles can keep.
-        if spare < view / 64 {
+        let whole = n as u64 * fluidcast_render::TILING_BYTES_PER_PARTICLE;
+        let spare = limit.saturating_sub(held + image + whole);
+        if spare < MIN_TILE_BYTES {
             bail!(
-                "--memory-limit {}: the particles and what the process holds already take {},                  and rendering in tiles needs about {} more (at least {} per tile); raise the limit",
+                "--memory-limit {}: the particles and what the process holds already take {}, \
+                 and rendering needs at least {} more; raise the limit",
                 fluidcast_mem::Bytes(limit),
                 fluidcast_mem::Bytes(held),
-                fluidcast_mem::Bytes(image + view / 64),
-                fluidcast_mem::Bytes(view / 64)
+                fluidcast_mem::Bytes(image + whole + MIN_TILE_BYTES)
             );
         }
-        let n = view.div_ceil(spare.max(1)).max(1);
-        Ok((n as u32).max(self.tiles.unwrap_or(1)))
+        let by_memory = usize::try_from(spare / fluidcast_render::VIEW_BYTES_PER_PARTICLE)
+            .unwrap_or(usize::MAX);
+        Ok(Some(by_count.map_or(by_memory, |c| c.min(by_memory))).filter(|&m| m < n))
     }
 }
 
@@ -123,10 +135,10 @@ pub fn render_frame(
     camera: &Camera,
     tf: &TransferFunction,
     params: &RenderParams,
-    (mode, cell, tiles): (Mode, u32, u32),
+    (mode, cell, tiles): (Mode, u32, Option<usize>),
     renderer: &Renderer,
 ) -> Result<(Image, RenderStats)> {
-    if tiles > 1 {
+    if let Some(max) = tiles {
         // The perspective grid interpolates between columns of `cell` pixels and takes
         // central differences across them: a tile also needs its neighbours' particles.
         let margin = if mode == Mode::PerspectiveGrid {
@@ -139,8 +151,8 @@ pub fn render_frame(
             surface,
             camera,
             params,
-            (tiles, margin),
-            |p, s, prm| render_frame(p, s, camera, tf, prm, (mode, cell, 1), renderer),
+            (max, margin),
+            |p, s, prm| render_frame(p, s, camera, tf, prm, (mode, cell, None), renderer),
         );
     }
     Ok(match mode {
@@ -308,7 +320,7 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
         .map(|(k, v)| (format!("{k}_ms"), json!(v)))
         .collect();
     let mut v = json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
-           "samples": s.samples, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
+           "samples": s.samples, "tiles": s.tiles, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
            "image": {"width": s.width, "height": s.height}});
     // The process' peak resident memory so far (all frames up to this one).
     if let Some(b) = fluidcast_mem::peak_resident() {
@@ -386,10 +398,10 @@ impl Recipe<'_> {
 
 fn load(input: &Input, file: &Path, recipe: &Recipe, index: usize) -> Result<Loaded> {
     let t_read = Instant::now();
-    let ds = input.read_with(file, &recipe.arrays())?;
+    let ds = input.open_lazy(file, &recipe.arrays())?;
     let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
     let t_prep = Instant::now();
-    let particles = Particles::from_dataset(&ds, recipe.spec)?;
+    let particles = Particles::from_source(&ds, recipe.spec)?;
     let iso_values = recipe
         .surface
         .other_values(recipe.array, &ds)
@@ -458,8 +470,13 @@ fn report_frame(out: &Path, stats: &RenderStats) {
     let peak = fluidcast_mem::peak_resident()
         .map(|b| format!(", peak memory {}", fluidcast_mem::Bytes(b)))
         .unwrap_or_default();
+    let tiles = if stats.tiles > 0 {
+        format!(", in {} screen tiles", stats.tiles)
+    } else {
+        String::new()
+    };
     eprintln!(
-        "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms{peak}",
+        "wrote {} ({} depth samples/ray, {} samples composited) in {:.1} ms{tiles}{peak}",
         out.display(),
         stats.depth_samples,
         stats.samples,
@@ -566,10 +583,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         };
         params.surfaces = a.surface.surfaces(array, iso_values)?;
-        let tiles = a.split.tiles(&particles, params.width, params.height)?;
-        if tiles > 1 && progress.is_none() {
-            eprintln!("rendering in {tiles} screen tiles");
-        }
+        let tiles = a
+            .split
+            .max_tile_particles(&particles, params.width, params.height)?;
         let how = (mode, a.sampling.grid_cell, tiles);
         let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, how, &renderer)
             .with_context(|| format!("rendering {}", file.display()))?;

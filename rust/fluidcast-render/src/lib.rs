@@ -43,7 +43,7 @@ pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
-pub use tiles::{render_in_tiles, tile_rects, VIEW_BYTES_PER_PARTICLE};
+pub use tiles::{render_in_tiles, TILING_BYTES_PER_PARTICLE, VIEW_BYTES_PER_PARTICLE};
 
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{CameraError, Lighting};
@@ -220,6 +220,8 @@ pub struct RenderStats {
     pub plan: Option<PlanStats>,
     /// GPU backend only: bytes of GPU buffers held (kept and reused across frames).
     pub gpu_memory_bytes: u64,
+    /// Screen tiles the view was rendered in ([`render_in_tiles`]); 0: one render.
+    pub tiles: usize,
 }
 
 impl RenderStats {

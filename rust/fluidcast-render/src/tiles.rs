@@ -26,61 +26,97 @@ use rayon::prelude::*;
 use crate::adaptive::SURFACE_THRESHOLD;
 use crate::{ms, IsoField, RenderError, RenderParams, RenderStats, Surfaces};
 
-/// Bytes of per-view working memory one visible particle costs the adaptive CPU renderer at
-/// most where its support covers about one cell (view-space particle 56, its footprint's
-/// particle–cell pairs 3 × 12, the subset copy 20), used to choose the tile count.
-pub const VIEW_BYTES_PER_PARTICLE: u64 = 112;
+/// Bytes of per-view working memory a tile's particle costs the adaptive CPU renderer where
+/// its support covers a few cells (view-space particle 56, its particle–cell pairs 3 × 12,
+/// the subset copy 20, the plan and allocator slack): how many particles a tile may take
+/// under a memory limit. Measured on 14.5M particles at 1024x1024: limits of 820 MiB and
+/// 1200 MiB held to 1 %.
+pub const VIEW_BYTES_PER_PARTICLE: u64 = 128;
 
-/// The tiles' pixel rectangles `[x0, x1, y0, y1]` (ends exclusive): `count` tiles or more,
-/// in a grid of rows and columns whose edges lie on multiples of `align` pixels.
-pub fn tile_rects(width: u32, height: u32, count: u32, align: u32) -> Vec<[u32; 4]> {
-    let align = align.max(1);
-    let (bx, by) = (width.div_ceil(align), height.div_ceil(align));
-    // As square as the image allows: columns ∝ width.
-    let count = count.clamp(1, bx * by);
-    let cols = (((count as f64) * bx as f64 / by as f64).sqrt().round() as u32).clamp(1, bx);
-    let rows = count.div_ceil(cols).clamp(1, by);
-    let cut = |n: u32, parts: u32, k: u32, end: u32| ((n * k / parts) * align).min(end);
-    let mut rects = Vec::new();
-    for r in 0..rows {
-        for c in 0..cols {
-            let rect = [
-                cut(bx, cols, c, width),
-                cut(bx, cols, c + 1, width),
-                cut(by, rows, r, height),
-                cut(by, rows, r + 1, height),
-            ];
-            if rect[0] < rect[1] && rect[2] < rect[3] {
-                rects.push(rect);
-            }
+/// Bytes per particle of the whole set that rendering in tiles holds throughout: each
+/// particle's screen rectangle (8) and surface flag (1).
+pub const TILING_BYTES_PER_PARTICLE: u64 = 9;
+
+/// The tiles: `rect` (pixels `[x0, x1, y0, y1]`, ends exclusive), split in two across its
+/// longer side at a multiple of `align` pixels, and so on, until each holds at most
+/// `max_particles` particles (or is one `align` square). Tiles no particle reaches are left
+/// out (their pixels stay empty).
+fn split_rects(
+    count: &impl Fn([u32; 4]) -> usize,
+    rect: [u32; 4],
+    max_particles: usize,
+    align: u32,
+    out: &mut Vec<[u32; 4]>,
+) {
+    let n = count(rect);
+    let (w, h) = (rect[1] - rect[0], rect[3] - rect[2]);
+    if n <= max_particles || (w <= align && h <= align) {
+        if n > 0 {
+            out.push(rect);
         }
+        return;
     }
-    rects
+    let cut = |lo: u32, hi: u32| ((lo + hi) / 2 / align).max(lo / align + 1) * align;
+    let (a, b) = if w >= h {
+        let x = cut(rect[0], rect[1]);
+        (
+            [rect[0], x, rect[2], rect[3]],
+            [x, rect[1], rect[2], rect[3]],
+        )
+    } else {
+        let y = cut(rect[2], rect[3]);
+        (
+            [rect[0], rect[1], rect[2], y],
+            [rect[0], rect[1], y, rect[3]],
+        )
+    };
+    split_rects(count, a, max_particles, align, out);
+    split_rects(count, b, max_particles, align, out);
 }
 
-/// The particles (indices, in order) whose support's screen rectangle meets `rect` grown by
-/// `margin` pixels, among those within `[near, far]`.
-fn particles_reaching(
+/// Each particle's support on screen, `[x0, x1, y0, y1]` in pixels (ends exclusive), found
+/// once per view; `[0; 4]` for particles outside `[near, far]` or off screen. 8 bytes a
+/// particle: the tiles are split and filled by comparisons alone.
+const _: () = assert!(
+    crate::MAX_SIDE <= u16::MAX as u32,
+    "pixel rectangles are u16"
+);
+fn screen_rects(
     particles: &Particles,
     frame: &ViewFrame,
     (near, far): (f64, f64),
-    rect: [u32; 4],
-    margin: u32,
-) -> Vec<usize> {
-    let [x0, x1, y0, y1] = [
+) -> Vec<[u16; 4]> {
+    (0..particles.len())
+        .into_par_iter()
+        .map(|j| {
+            screen_rect(frame, &view_particle(particles, frame, j), near, far)
+                .map_or([0; 4], |r| r.map(|v| v as u16))
+        })
+        .collect()
+}
+
+/// The particles (indices, in order) whose screen rectangle meets `rect` grown by `margin`
+/// pixels.
+fn particles_reaching(rects: &[[u16; 4]], rect: [u32; 4], margin: u32) -> Vec<usize> {
+    let [x0, x1, y0, y1] = grow(rect, margin);
+    (0..rects.len())
+        .into_par_iter()
+        .filter(|&j| meets(rects[j], [x0, x1, y0, y1]))
+        .collect()
+}
+
+fn grow(rect: [u32; 4], margin: u32) -> [u32; 4] {
+    [
         rect[0].saturating_sub(margin),
         rect[1].saturating_add(margin),
         rect[2].saturating_sub(margin),
         rect[3].saturating_add(margin),
-    ];
-    (0..particles.len())
-        .into_par_iter()
-        .filter(|&j| {
-            let p = view_particle(particles, frame, j);
-            screen_rect(frame, &p, near, far)
-                .is_some_and(|r| r[0] < x1 && r[1] > x0 && r[2] < y1 && r[3] > y0)
-        })
-        .collect()
+    ]
+}
+
+fn meets(r: [u16; 4], [x0, x1, y0, y1]: [u32; 4]) -> bool {
+    let r = r.map(u32::from);
+    r[0] < r[1] && r[0] < x1 && r[1] > x0 && r[2] < y1 && r[3] > y0
 }
 
 /// The iso-surface settings with an attribute array cut down to `keep`.
@@ -139,17 +175,18 @@ fn add_stats(total: &mut RenderStats, tile: &RenderStats) {
     }
 }
 
-/// Renders the view in `tiles` screen tiles (see the module's documentation) with `render`,
-/// which is handed each tile's particles, their surface flags and the parameters to use.
-/// `surface`: the surface flags of all particles, if the caller has them. `margin`: pixels
-/// around each tile whose particles the tile also takes (what a pixel's neighbours add:
-/// the perspective grid's columns).
+/// Renders the view in screen tiles of at most `max_particles` particles each (see the
+/// module's documentation; a tile of one ray bundle may hold more) with `render`, which is
+/// handed each tile's particles, their surface flags and the parameters to use. `surface`:
+/// the surface flags of all particles, if the caller has them. `margin`: pixels around each
+/// tile whose particles the tile also takes (what a pixel's neighbours add: the perspective
+/// grid's columns). The statistics count the tiles in `tiles`.
 pub fn render_in_tiles<E: From<RenderError>>(
     particles: &Particles,
     surface: Option<&[bool]>,
     camera: &Camera,
     params: &RenderParams,
-    (tiles, margin): (u32, u32),
+    (max_particles, margin): (usize, u32),
     mut render: impl FnMut(
         &Particles,
         Option<&[bool]>,
@@ -181,21 +218,26 @@ pub fn render_in_tiles<E: From<RenderError>>(
         )),
         None => None,
     };
-    stats.particles_visible = (0..particles.len())
-        .into_par_iter()
-        .filter(|&j| {
-            screen_rect(
-                &frame,
-                &view_particle(particles, &frame, j),
-                range.0,
-                range.1,
-            )
-            .is_some()
-        })
-        .count();
+    let rects = screen_rects(particles, &frame, range);
+    stats.particles_visible = rects.par_iter().filter(|r| r[0] < r[1]).count();
+    let reach = |rect| particles_reaching(&rects, rect, margin);
+    let mut tiles = Vec::new();
+    let whole = [0, params.width, 0, params.height];
+    let count = |rect| {
+        let g = grow(rect, margin);
+        rects.par_iter().filter(|&&r| meets(r, g)).count()
+    };
+    split_rects(
+        &count,
+        whole,
+        max_particles.max(1),
+        params.grid.bundle.max(1),
+        &mut tiles,
+    );
+    stats.tiles = tiles.len();
     let split_ms = ms(t0);
-    for rect in tile_rects(params.width, params.height, tiles, params.grid.bundle) {
-        let keep = particles_reaching(particles, &frame, range, rect, margin);
+    for rect in tiles {
+        let keep = reach(rect);
         let part = particles.select(&keep);
         let part_flags: Option<Vec<bool>> =
             flags.as_ref().map(|f| keep.iter().map(|&j| f[j]).collect());
@@ -208,4 +250,48 @@ pub fn render_in_tiles<E: From<RenderError>>(
     }
     stats.stages.insert(0, ("split", split_ms));
     Ok((image, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tiles cover the image exactly once (less tiles nothing reaches), their edges lie on
+    /// multiples of the bundle size, and each holds at most the limit unless it is one bundle.
+    #[test]
+    fn split_tiles_cover_the_image_once_on_bundle_edges() {
+        // Points crowded towards the bottom left, as fluid at the bottom of a view.
+        let pts: Vec<[u32; 2]> = (0..4000u32)
+            .map(|k| {
+                [
+                    (k * 7919 % 997) * 70 / 997 / (1 + k % 3),
+                    53 - (k * 104_729 % 991) * 53 / 991 / (1 + k % 4) - 1,
+                ]
+            })
+            .collect();
+        let count = |r: [u32; 4]| {
+            pts.iter()
+                .filter(|p| p[0] >= r[0] && p[0] < r[1] && p[1] >= r[2] && p[1] < r[3])
+                .count()
+        };
+        for (max, align) in [(4000, 8), (500, 8), (100, 4), (1, 8)] {
+            let mut tiles = Vec::new();
+            split_rects(&count, [0, 70, 0, 53], max, align, &mut tiles);
+            let mut covered = vec![0u8; 70 * 53];
+            for r in &tiles {
+                assert!(r[0] % align == 0 && r[2] % align == 0, "{r:?}");
+                assert!(count(*r) <= max || (r[1] - r[0] <= align && r[3] - r[2] <= align));
+                for j in r[2]..r[3] {
+                    for i in r[0]..r[1] {
+                        covered[(j * 70 + i) as usize] += 1;
+                    }
+                }
+            }
+            assert!(covered.iter().all(|&c| c <= 1));
+            for p in &pts {
+                assert_eq!(covered[(p[1] * 70 + p[0]) as usize], 1, "max {max}: {p:?}");
+            }
+            assert_eq!(tiles.len() == 1, max >= pts.len(), "max {max}");
+        }
+    }
 }

@@ -8,8 +8,8 @@ use std::sync::Arc;
 use common::{cloud, cloud_view};
 use fluidcast_image::Image;
 use fluidcast_render::{
-    render_adaptive, render_in_tiles, render_perspective_grid, render_reference, tile_rects,
-    IsoField, PlanParams, RenderError, RenderParams, RenderStats, Surfaces,
+    render_adaptive, render_in_tiles, render_perspective_grid, render_reference, IsoField,
+    PlanParams, RenderError, RenderParams, RenderStats, Surfaces,
 };
 use fluidcast_sph::{FieldKind, Particles};
 use fluidcast_view::{Camera, TransferFunction};
@@ -127,20 +127,23 @@ fn tiles_render_parts_and_every_reaching_particle_counts() {
     let prm = params(64, 64);
     let (whole, _) = render_reference(&p, &cam, &tf, &prm).unwrap();
     let mut sizes = Vec::new();
-    let (tiled, _) = render_in_tiles(&p, None, &cam, &prm, (4, 0), |q, s, prm| {
+    let max = p.len() / 4;
+    let (tiled, _) = render_in_tiles(&p, None, &cam, &prm, (max, 0), |q, s, prm| {
         sizes.push(q.len());
         let _ = s;
         render_reference(q, &cam, &tf, prm)
     })
     .unwrap();
     assert_eq!(max_diff(&whole, &tiled), 0.0);
-    assert_eq!(sizes.len(), 4);
+    // Tiles hold parts; only a tile of one bundle (8x8 pixels here, which many of these big
+    // particles cover) may hold more than asked.
+    assert!(sizes.iter().all(|&n| n > 0 && n < p.len() / 2), "{sizes:?}");
     assert!(
-        sizes.iter().all(|&n| n > 0 && n < p.len() * 3 / 4),
+        sizes.iter().filter(|&&n| n <= max).count() >= 4,
         "{sizes:?}"
     );
     // Dropping each tile's last particle shows.
-    let (short, _) = render_in_tiles(&p, None, &cam, &prm, (4, 0), |q, _, prm| {
+    let (short, _) = render_in_tiles(&p, None, &cam, &prm, (max, 0), |q, _, prm| {
         let keep: Vec<usize> = (0..q.len() - 1).collect();
         render_reference(&q.select(&keep), &cam, &tf, prm)
     })
@@ -166,35 +169,10 @@ fn tiles_keep_iso_surfaces_of_another_attribute() {
         ..params(60, 44)
     };
     let (whole, _) = render_reference(&p, &cam, &tf, &prm).unwrap();
-    let (tiled, _) = render_in_tiles(&p, None, &cam, &prm, (6, 0), |q, _, prm| {
+    let (tiled, _) = render_in_tiles(&p, None, &cam, &prm, (p.len() / 6, 0), |q, _, prm| {
         render_reference(q, &cam, &tf, prm)
     })
     .unwrap();
     assert_eq!(max_diff(&whole, &tiled), 0.0);
     assert!(whole.aovs.iter().any(|(n, _)| n == "normal_x"));
-}
-
-#[test]
-fn tile_rects_cover_the_image_once_on_bundle_edges() {
-    for (w, h, n, align) in [
-        (70, 53, 5, 8),
-        (1024, 768, 4, 8),
-        (9, 9, 100, 4),
-        (1, 1, 3, 8),
-    ] {
-        let rects = tile_rects(w, h, n, align);
-        assert!(rects.len() as u32 >= n.min(w.div_ceil(align) * h.div_ceil(align)));
-        let mut covered = vec![0u8; (w * h) as usize];
-        for r in &rects {
-            for v in [r[0], r[2]] {
-                assert_eq!(v % align, 0, "{r:?}");
-            }
-            for j in r[2]..r[3] {
-                for i in r[0]..r[1] {
-                    covered[(j * w + i) as usize] += 1;
-                }
-            }
-        }
-        assert!(covered.iter().all(|&c| c == 1), "{w}x{h} in {n}: {rects:?}");
-    }
 }
