@@ -136,6 +136,17 @@ public:
 
   ///@{
   /**
+   * Most memory (MiB) one render may take beyond the particles the mapper holds: above it,
+   * the view is rendered in screen tiles, each with only the particles that reach it, to the
+   * same image. 0 (default): no limit. A limit too small for the image and a minimal tile is
+   * an error (nothing is drawn).
+   */
+  vtkSetClampMacro(MemoryLimit, double, 0.0, 1.0e9);
+  vtkGetMacro(MemoryLimit, double);
+  ///@}
+
+  ///@{
+  /**
    * Iso-surfaces, as vtkGPUVolumeRayCastMapper draws them: with BlendMode
    * vtkVolumeMapper::ISOSURFACE_BLEND the surfaces at the vtkVolumeProperty's
    * GetIsoSurfaceValues() are drawn, found exactly along each ray and lit with the property's
@@ -283,6 +294,7 @@ protected:
   double ErrorTolerance = 0.004;
   int Backend = AUTO;
   char* Adapter = nullptr;
+  double MemoryLimit = 0.0;
   int VectorMode = -1;
   int VectorComponent = 0;
   int BlendMode = vtkVolumeMapper::COMPOSITE_BLEND;

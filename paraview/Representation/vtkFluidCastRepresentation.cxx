@@ -307,6 +307,11 @@ void vtkFluidCastRepresentation::SetErrorTolerance(double e)
   this->Mapper->SetErrorTolerance(e);
 }
 
+void vtkFluidCastRepresentation::SetMemoryLimit(double mib)
+{
+  this->Mapper->SetMemoryLimit(mib);
+}
+
 void vtkFluidCastRepresentation::SetBackend(int backend)
 {
   this->Mapper->SetBackend(backend);

@@ -55,6 +55,8 @@ public:
   void SetRadiusScale(double s);
   void SetKernel(int kernel);
   void SetErrorTolerance(double e);
+  /** The mapper's MemoryLimit (MiB; 0: none): render in screen tiles to stay within it. */
+  void SetMemoryLimit(double mib);
   void SetBackend(int backend);
   void SetAdapter(const char* name);
   ///@}

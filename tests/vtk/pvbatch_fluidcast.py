@@ -3,7 +3,7 @@ representation, save a screenshot and compare it with `fluidcast render` for the
 colour map and opacity function.
 
     pvbatch pvbatch_fluidcast.py PLUGIN.so DATA.vtu ARRAY OUTDIR FLUIDCAST_CLI TOLERANCE [BACKEND]
-            [--properties] [--iso]
+            [--properties] [--iso] [--memory-limit]
 
 TOLERANCE is the representation's error tolerance (a number; 0 = full rate). The images must
 agree within 2/255 per channel at full rate, 2 E_I + 1/255 when adaptive (as the VTK window
@@ -12,7 +12,10 @@ also rendered with CPU and the two screenshots must agree within 2/255. --proper
 sets FluidCastSupportRadius, FluidCastKernel and a vector component (ColorBy ... "Z") away
 from their defaults: each screenshot must agree with the CLI render that uses the same
 option, and that CLI render must differ from the default screenshot by more than the
-agreement allows (so a property the representation ignored would fail). --iso shows the
+agreement allows (so a property the representation ignored would fail). --memory-limit sets
+FluidCastMemoryLimit just above what the image and tiling take, so that the view renders in
+screen tiles: the screenshot must equal the default one exactly; a 1 MiB limit must draw
+nothing (an error), and 0 draws the view again. --iso shows the
 free surface instead (FluidCastIsosurfaceValues 0.5 of the colour field, shaded, with
 FluidCastSpecularPower away from its default), compared with `fluidcast render --iso 0.5
 --specular-power 20`; the volume-only CLI render must differ from it. Exit code 0 pass,
@@ -39,8 +42,10 @@ from paraview.simple import (
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
-args = [a for a in sys.argv[1:] if a not in ("--properties", "--iso")]
+flags = ("--properties", "--iso", "--memory-limit")
+args = [a for a in sys.argv[1:] if a not in flags]
 properties = "--properties" in sys.argv
+memory_limit = "--memory-limit" in sys.argv
 iso = "--iso" in sys.argv
 # The CLI options that match the representation's iso-surface properties below.
 iso_extra = ("--iso", "0.5", "--specular-power", "20") if iso else ()
@@ -190,6 +195,23 @@ def property_follows_cli(name, component="mag", extra=()):
     return ok
 
 
+if memory_limit:
+    # The image planes (2 x 32 bytes a pixel), 9 bytes a particle and 2 MiB of tiles: the
+    # tiles hold about 16,000 particles each (128 bytes a particle).
+    n = reader.GetDataInformation().GetNumberOfPoints()
+    mib = (W * H * 64 + 9 * n + (2 << 20)) / 2**20
+    display.FluidCastMemoryLimit = mib
+    tiled = abs(read(screenshot("memory_limit")) - a).max()
+    print(f"FluidCastMemoryLimit {mib:.2f} MiB ({n} particles): vs no limit max {tiled}/255")
+    display.FluidCastMemoryLimit = 1.0
+    drawn_none = int((read(screenshot("memory_limit_1")) != 255).any(axis=1).sum())
+    print(f"FluidCastMemoryLimit 1 MiB: {drawn_none} pixels drawn (expected none)")
+    display.FluidCastMemoryLimit = 0.0
+    again = abs(read(screenshot("memory_limit_0")) - a).max()
+    ok = tiled == 0 and drawn_none == 0 and again == 0
+    if not ok:
+        print("FAIL: FluidCastMemoryLimit changed the image or was not applied")
+    status = status or (0 if ok else 1)
 if properties:
     # Each property alone, then back to its default.
     h = float(display.GetProperty("FluidCastSupportRadius").GetData() or 0.0)

@@ -85,10 +85,6 @@ fn parse_memory_limit(s: &str) -> Result<u64, String> {
         .ok_or_else(|| format!("'{s}' is not a size: give bytes, or a number with K, M, G or T"))
 }
 
-/// Less room than this for the tiles' working memory is refused: tiles of a few thousand
-/// particles would take far longer than they save.
-const MIN_TILE_BYTES: u64 = 16 << 20;
-
 impl SplitArgs {
     /// The most particles a screen tile of a view of `particles` may hold at `width ×
     /// height`: from `--tiles` and from `--memory-limit` (beside what the process holds now),
@@ -107,22 +103,17 @@ impl SplitArgs {
         let Some(held) = fluidcast_mem::resident() else {
             bail!("--memory-limit needs the process' memory use, which this system does not report (/proc/self/status); use --tiles");
         };
-        // The image, its depth and AOV planes, and a tile's own image; what tiling keeps of
-        // every particle.
-        let image = u64::from(width) * u64::from(height) * 2 * 32;
-        let whole = n as u64 * fluidcast_render::TILING_BYTES_PER_PARTICLE;
-        let spare = limit.saturating_sub(held + image + whole);
-        if spare < MIN_TILE_BYTES {
-            bail!(
-                "--memory-limit {}: the particles and what the process holds already take {}, \
-                 and rendering needs at least {} more; raise the limit",
+        let by_memory =
+            fluidcast_render::tile_particles_within(n, width, height, limit.saturating_sub(held))
+                .with_context(|| {
+                    format!(
+                "--memory-limit {}: the particles and what the process holds already take {}; \
+                 raise the limit",
                 fluidcast_mem::Bytes(limit),
-                fluidcast_mem::Bytes(held),
-                fluidcast_mem::Bytes(image + whole + MIN_TILE_BYTES)
-            );
-        }
-        let by_memory = usize::try_from(spare / fluidcast_render::VIEW_BYTES_PER_PARTICLE)
-            .unwrap_or(usize::MAX);
+                fluidcast_mem::Bytes(held)
+            )
+                })?
+                .unwrap_or(n);
         Ok(Some(by_count.map_or(by_memory, |c| c.min(by_memory))).filter(|&m| m < n))
     }
 }

@@ -21,7 +21,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use fluidcast_backend::Backend;
+use fluidcast_backend::{Backend, BackendError};
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
 use fluidcast_render::{IsoField, PlanParams, RenderParams, Surfaces, SURFACE_THRESHOLD};
 use fluidcast_sph::{
@@ -66,6 +66,9 @@ mod ffi {
         backend: i32,
         /// A GPU adapter by a part of its name ("" = the best; FLUIDCAST_ADAPTER applies).
         adapter: String,
+        /// Most memory (MiB) a render may take beyond the particles it holds: the view is
+        /// rendered in screen tiles to stay within it, to the same image; <= 0: no limit.
+        memory_limit_mib: f64,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -728,21 +731,51 @@ impl Renderer {
             let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
             };
-            let (r, device, note) = if params.surfaces.is_some() {
-                let device = fluidcast_backend::Renderer::cpu().device();
-                let (image, stats) =
-                    fluidcast_render::render_reference(&p.particles, &camera, &tf, &params)
-                        .map_err(|e| format!("{name} ({device}): {e}"))?;
+            let surfaces = params.surfaces.is_some();
+            let (device, note) = if surfaces {
                 let note = "iso-surfaces render on the CPU (reference ray caster)";
-                (fluidcast_render::Rendered { image, stats }, device, note)
+                (fluidcast_backend::Renderer::cpu().device(), note)
             } else {
-                let device = b.renderer.device();
-                let r = b
-                    .renderer
-                    .render(&p.particles, Some(&p.surface), &camera, &tf, &params)
-                    .map_err(|e| format!("{name} ({device}): {e}"))?;
-                (r, device, b.renderer.note().unwrap_or(""))
+                (b.renderer.device(), b.renderer.note().unwrap_or(""))
             };
+            let draw = |q: &fluidcast_sph::Particles,
+                        flags: Option<&[bool]>,
+                        prm: &RenderParams|
+             -> Result<
+                (fluidcast_image::Image, fluidcast_render::RenderStats),
+                BackendError,
+            > {
+                if surfaces {
+                    Ok(fluidcast_render::render_reference(q, &camera, &tf, prm)?)
+                } else {
+                    let r = b.renderer.render(q, flags, &camera, &tf, prm)?;
+                    Ok((r.image, r.stats))
+                }
+            };
+            let tile = match s.memory_limit_mib {
+                m if m > 0.0 => fluidcast_render::tile_particles_within(
+                    p.particles.len(),
+                    width,
+                    height,
+                    (m * 1048576.0).min(u64::MAX as f64) as u64,
+                )
+                .map_err(|e| format!("{name}: MemoryLimit {m} MiB: {e}"))?,
+                _ => None,
+            };
+            let flags = Some(p.surface.as_slice());
+            let (image, stats) = match tile {
+                Some(max) => fluidcast_render::render_in_tiles(
+                    &p.particles,
+                    flags,
+                    &camera,
+                    &params,
+                    (max, 0),
+                    draw,
+                ),
+                None => draw(&p.particles, flags, &params),
+            }
+            .map_err(|e| format!("{name} ({device}): {e}"))?;
+            let r = fluidcast_render::Rendered { image, stats };
             let notes: Vec<&str> = [p.info.notes.as_str(), note]
                 .into_iter()
                 .filter(|n| !n.is_empty())
@@ -837,6 +870,7 @@ mod tests {
             error_tolerance: 0.004,
             backend: 1,
             adapter: String::new(),
+            memory_limit_mib: 0.0,
         }
     }
 
@@ -872,6 +906,55 @@ mod tests {
             specular: 0.2,
             specular_power: 10.0,
         }
+    }
+
+    /// MemoryLimit: a limit that tiles the view renders the same image; one too small for
+    /// any tile is an error naming the limit, and the next render without it works.
+    #[test]
+    fn memory_limits_tile_the_view_to_the_same_image() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let xyz = cube(59, 0.5 / 58.0);
+        let n = xyz.len() / 3;
+        r.begin_data("big cube");
+        r.set_points_f64(&xyz).unwrap();
+        let vals: Vec<f32> = (0..n).map(|i| (i % 7) as f32).collect();
+        r.add_point_array_f32("value", 1, &vals).unwrap();
+        let mut s = settings();
+        s.support_radius = 0.02;
+        r.configure(&s).unwrap();
+        let (w, h) = (40u32, 30u32);
+        let render = |r: &mut Renderer| {
+            let mut rgba = vec![0f32; 4 * 40 * 30];
+            let mut depth = vec![0f32; 40 * 30];
+            r.render(w, h, &[], &mut rgba, &mut depth)
+                .map(|_| (rgba, depth))
+        };
+        let whole = render(&mut r).unwrap();
+        // Room for the image, 9 bytes a particle and a minimal tile: fewer than n per tile.
+        let fixed = (w * h) as f64 * 64.0 + n as f64 * 9.0;
+        s.memory_limit_mib = (fixed + fluidcast_render::MIN_TILE_BYTES as f64) / 1048576.0 + 0.5;
+        assert!(fluidcast_render::tile_particles_within(
+            n,
+            w,
+            h,
+            (s.memory_limit_mib * 1048576.0) as u64
+        )
+        .unwrap()
+        .is_some());
+        r.configure(&s).unwrap();
+        let tiled = render(&mut r).unwrap();
+        assert_eq!(whole, tiled);
+        s.memory_limit_mib = 1.0;
+        r.configure(&s).unwrap();
+        let e = render(&mut r).unwrap_err();
+        assert!(
+            e.contains("MemoryLimit 1 MiB") && e.contains("too small"),
+            "{e}"
+        );
+        s.memory_limit_mib = 0.0;
+        r.configure(&s).unwrap();
+        assert_eq!(render(&mut r).unwrap(), whole);
     }
 
     /// With iso values the bridge draws surfaces (on the CPU, whatever the backend) exactly

@@ -43,7 +43,10 @@ pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
-pub use tiles::{render_in_tiles, TILING_BYTES_PER_PARTICLE, VIEW_BYTES_PER_PARTICLE};
+pub use tiles::{
+    render_in_tiles, tile_particles_within, MIN_TILE_BYTES, TILING_BYTES_PER_PARTICLE,
+    VIEW_BYTES_PER_PARTICLE,
+};
 
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{CameraError, Lighting};
@@ -187,6 +190,9 @@ pub enum RenderError {
     VolumeLighting(&'static str),
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
+    /// Rendering in screen tiles within a memory budget ([`tile_particles_within`]).
+    #[error("a memory limit leaving {} for rendering is too small: it needs at least {} (the image, 9 bytes a particle, and a tile of 1 MiB)", fluidcast_mem::Bytes(*.budget), fluidcast_mem::Bytes(*.needed))]
+    MemoryBudget { budget: u64, needed: u64 },
 }
 
 /// A rendered frame: the image and what it took. What every backend returns (the CPU renderers

@@ -37,6 +37,35 @@ pub const VIEW_BYTES_PER_PARTICLE: u64 = 128;
 /// particle's screen rectangle (8) and surface flag (1).
 pub const TILING_BYTES_PER_PARTICLE: u64 = 9;
 
+/// Less room than this for the tiles' working memory is refused: tiles of fewer than about
+/// 8000 particles would take far longer than they save.
+pub const MIN_TILE_BYTES: u64 = 1 << 20;
+
+/// The most particles a screen tile may hold so that rendering `particles` particles at
+/// `width × height` in tiles takes at most `budget` bytes beyond the particles themselves
+/// (the image planes, what tiling keeps of every particle, one tile's working memory):
+/// `None` when one render fits. Too small a budget is [`RenderError::MemoryBudget`].
+pub fn tile_particles_within(
+    particles: usize,
+    width: u32,
+    height: u32,
+    budget: u64,
+) -> Result<Option<usize>, RenderError> {
+    // The image, its depth and AOV planes, and a tile's own image.
+    let image = u64::from(width) * u64::from(height) * 2 * 32;
+    let whole = particles as u64 * TILING_BYTES_PER_PARTICLE;
+    let fixed = image + whole;
+    let spare = budget.saturating_sub(fixed);
+    if spare < MIN_TILE_BYTES {
+        return Err(RenderError::MemoryBudget {
+            budget,
+            needed: fixed + MIN_TILE_BYTES,
+        });
+    }
+    let most = usize::try_from(spare / VIEW_BYTES_PER_PARTICLE).unwrap_or(usize::MAX);
+    Ok((most < particles).then_some(most))
+}
+
 /// The tiles: `rect` (pixels `[x0, x1, y0, y1]`, ends exclusive), split in two across its
 /// longer side at a multiple of `align` pixels, and so on, until each holds at most
 /// `max_particles` particles (or is one `align` square). Tiles no particle reaches are left
