@@ -248,7 +248,7 @@ pub(crate) fn decode_raw(
     src: &[u8],
     ctx: Ctx,
     expected: Option<usize>,
-) -> Result<(Vec<u8>, usize), String> {
+) -> Result<(std::borrow::Cow<'_, [u8]>, usize), String> {
     match ctx.compressor {
         None => {
             let n = ctx.word(src, 0).ok_or("data header is truncated")?;
@@ -260,13 +260,14 @@ pub(crate) fn decode_raw(
                     "data header says {n} bytes but only {avail} follow (file truncated?)"
                 ));
             }
-            Ok((src.get(hb..hb + n).unwrap_or_default().to_vec(), hb + n))
+            // Uncompressed: the bytes as they lie in the file, not a copy of them.
+            Ok((src.get(hb..hb + n).unwrap_or_default().into(), hb + n))
         }
         Some(c) => {
             let h = BlockHeader::parse(src, ctx, expected)?;
             let hl = BlockHeader::len_for(h.compressed.len(), ctx);
             let data = h.inflate(src.get(hl..).unwrap_or_default(), c)?;
-            Ok((data, hl + h.total_compressed()?))
+            Ok((data.into(), hl + h.total_compressed()?))
         }
     }
 }

@@ -576,7 +576,7 @@ fn decode_values(
                 .copied()
                 .filter(|c| !c.is_ascii_whitespace())
                 .collect();
-            decode_base64(&text, ctx, expected_bytes)?.0
+            decode_base64(&text, ctx, expected_bytes)?.0.into()
         }
         "appended" => {
             let app = appended.ok_or("format is 'appended' but the file has no <AppendedData>")?;
@@ -592,7 +592,8 @@ fn decode_values(
                     format!("offset {off} is beyond the end of the appended data (file truncated?)")
                 })?;
             let (raw, used) = if app.base64 {
-                decode_base64(src, ctx, expected_bytes)?
+                let (raw, used) = decode_base64(src, ctx, expected_bytes)?;
+                (raw.into(), used)
             } else {
                 decode_raw(src, ctx, expected_bytes)?
             };
