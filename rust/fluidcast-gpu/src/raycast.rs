@@ -50,8 +50,8 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
             .flat_map(|p| {
                 let c = p.c.map(|v| v as f32);
                 [
-                    [c[0], c[1], c[2], p.h as f32],
-                    [p.v as f32, p.a as f32, p.m as f32, 0.0],
+                    [c[0], c[1], c[2], p.h() as f32],
+                    [p.v() as f32, p.a() as f32, p.m() as f32, 0.0],
                 ]
             })
             .collect(),

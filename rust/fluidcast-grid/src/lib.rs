@@ -47,14 +47,46 @@ pub enum GridError {
 pub struct ViewParticle {
     /// Centre in view space.
     pub c: [f64; 3],
-    /// Support radius H (the kernel is zero beyond it).
-    pub h: f64,
-    /// Volume V = m/ρ.
-    pub v: f64,
+    /// Support radius H (the kernel is zero beyond it), volume V = m/ρ, the rendered
+    /// quantity q and the mass m (for the density field): single precision as the particles
+    /// hold them (16 bytes a particle less than doubles), read as doubles.
+    pub h32: f32,
+    pub v32: f32,
+    pub a32: f32,
+    pub m32: f32,
+}
+
+impl ViewParticle {
+    /// A view-space particle from doubles (rounded to single precision, as particles are).
+    pub fn new(c: [f64; 3], h: f64, v: f64, a: f64, m: f64) -> ViewParticle {
+        ViewParticle {
+            c,
+            h32: h as f32,
+            v32: v as f32,
+            a32: a as f32,
+            m32: m as f32,
+        }
+    }
+    /// Support radius H (world units).
+    #[inline]
+    pub fn h(&self) -> f64 {
+        f64::from(self.h32)
+    }
+    /// Volume V = m/ρ (world units³).
+    #[inline]
+    pub fn v(&self) -> f64 {
+        f64::from(self.v32)
+    }
     /// The rendered quantity q.
-    pub a: f64,
-    /// Mass m (for the density field).
-    pub m: f64,
+    #[inline]
+    pub fn a(&self) -> f64 {
+        f64::from(self.a32)
+    }
+    /// Mass m.
+    #[inline]
+    pub fn m(&self) -> f64 {
+        f64::from(self.m32)
+    }
 }
 
 /// All particles in view space and the depth range their supports occupy.
@@ -71,10 +103,10 @@ pub fn view_particle(particles: &Particles, frame: &ViewFrame, j: usize) -> View
     let v = frame.to_view(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
     ViewParticle {
         c: v.to_array(),
-        h: particles.radii[j] as f64,
-        v: particles.volumes[j] as f64,
-        a: particles.values[j] as f64,
-        m: particles.masses[j] as f64,
+        h32: particles.radii[j],
+        v32: particles.volumes[j],
+        a32: particles.values[j],
+        m32: particles.masses[j],
     }
 }
 
@@ -88,7 +120,7 @@ pub fn view_particles(particles: &Particles, frame: &ViewFrame) -> ViewParticles
         .collect();
     let (zmin, zmax) = list
         .iter()
-        .map(|p| (p.c[2] - p.h, p.c[2] + p.h))
+        .map(|p| (p.c[2] - p.h(), p.c[2] + p.h()))
         .fold((f64::INFINITY, f64::NEG_INFINITY), extent);
     let range = if list.is_empty() {
         None
@@ -179,7 +211,7 @@ pub fn depth_range(zmin: f64, zmax: f64, perspective: bool) -> Option<(f64, f64)
 /// projected at its nearest and farthest depth.
 pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
     let [x, y, z] = p.c;
-    if z + p.h < near || z - p.h > far {
+    if z + p.h() < near || z - p.h() > far {
         return None;
     }
     let (w, h) = (frame.width, frame.height);
@@ -188,18 +220,18 @@ pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
         None => (frame.tan_half * frame.aspect, frame.tan_half),
     };
     let (x0, x1, y0, y1) = match frame.parallel {
-        None if z - p.h <= near * 0.5 => {
+        None if z - p.h() <= near * 0.5 => {
             (-f64::INFINITY, f64::INFINITY, -f64::INFINITY, f64::INFINITY)
         }
         None => {
             // x/z over the box [x±h]×[z±h] (z > 0) is extreme at its corners.
-            let zs = [z - p.h, z + p.h];
+            let zs = [z - p.h(), z + p.h()];
             let ext = |c: f64| {
                 let v = [
-                    (c - p.h) / zs[0],
-                    (c - p.h) / zs[1],
-                    (c + p.h) / zs[0],
-                    (c + p.h) / zs[1],
+                    (c - p.h()) / zs[0],
+                    (c - p.h()) / zs[1],
+                    (c + p.h()) / zs[0],
+                    (c + p.h()) / zs[1],
                 ];
                 (
                     v.iter().copied().fold(f64::INFINITY, f64::min),
@@ -210,7 +242,7 @@ pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
             let (c, d) = ext(y);
             (a, b, c, d)
         }
-        Some(_) => (x - p.h, x + p.h, y - p.h, y + p.h),
+        Some(_) => (x - p.h(), x + p.h(), y - p.h(), y + p.h()),
     };
     // NDC → pixel columns/rows (rows from the top).
     let px0 = ((x0 / sx + 1.0) * 0.5 * w as f64).floor().max(0.0);
@@ -278,7 +310,7 @@ impl Ray {
     #[inline]
     pub fn passage(&self, p: &ViewParticle) -> Option<Passage> {
         let (t, r2) = self.closest_approach(p);
-        let h2 = p.h * p.h;
+        let h2 = p.h() * p.h();
         if r2 >= h2 {
             return None;
         }
@@ -418,7 +450,7 @@ impl Bundle {
     pub fn covered_by(&self, p: &ViewParticle, z: f64) -> bool {
         let [x0, x1, y0, y1] = self.rect_at(z);
         let dz = z - p.c[2];
-        let lim = (p.h * p.h - dz * dz) * (1.0 - 1e-9);
+        let lim = (p.h() * p.h() - dz * dz) * (1.0 - 1e-9);
         if lim <= 0.0 {
             return false;
         }
@@ -560,7 +592,7 @@ impl PerspectiveGrid {
         // Computed where needed, twice, rather than stored: 28 bytes a particle.
         let foot = |p: &ViewParticle| -> Option<[u32; 6]> {
             let r = screen_rect(frame, p, near, far)?;
-            let k = depths.indices_within(p.c[2] - p.h, p.c[2] + p.h);
+            let k = depths.indices_within(p.c[2] - p.h(), p.c[2] + p.h());
             if k.is_empty() {
                 return None;
             }

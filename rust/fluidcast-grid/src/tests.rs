@@ -52,7 +52,7 @@ fn cells_hold_every_contributing_particle() {
                     let ray = Ray::through_pixel(&f, i, j);
                     for (k, &z) in depths.z[..depths.len()].iter().enumerate() {
                         for (q, vp) in g.particles.iter().enumerate() {
-                            if ray.distance_at(z, vp) >= vp.h {
+                            if ray.distance_at(z, vp) >= vp.h() {
                                 continue;
                             }
                             let cz = (k / params.depth_samples as usize) as u32;
@@ -124,7 +124,7 @@ fn bundle_rect_and_coverage_hold_the_rays() {
                         assert!(y >= y0 - 1e-12 && y <= y1 + 1e-12);
                         for vp in &g.particles {
                             if bd.covered_by(vp, z) {
-                                assert!(r.distance_at(z, vp) < vp.h);
+                                assert!(r.distance_at(z, vp) < vp.h());
                             }
                         }
                     }
@@ -175,7 +175,7 @@ fn support_depth_range_is_the_cpu_range() {
         let zs: Vec<(f64, f64)> = view_particles(&p, &f)
             .list
             .iter()
-            .map(|v| (v.c[2] - v.h, v.c[2] + v.h))
+            .map(|v| (v.c[2] - v.h(), v.c[2] + v.h()))
             .collect();
         assert_eq!(
             far,
@@ -218,15 +218,15 @@ fn passage_enters_and_leaves_at_the_support_radius() {
                         Some(s) => {
                             inside += 1;
                             for z in [s.z0, s.z1] {
-                                assert!((ray.distance_at(z, q) - q.h).abs() < 1e-9 * q.h);
-                                assert!((s.distance_at(z) - q.h).abs() < 1e-9 * q.h);
+                                assert!((ray.distance_at(z, q) - q.h()).abs() < 1e-9 * q.h());
+                                assert!((s.distance_at(z) - q.h()).abs() < 1e-9 * q.h());
                             }
-                            assert!(s.z0 <= s.t && s.t <= s.z1 && closest < q.h);
+                            assert!(s.z0 <= s.t && s.t <= s.z1 && closest < q.h());
                             assert!((s.distance_at(s.t) - closest).abs() < 1e-9);
                         }
                         None => {
                             outside += 1;
-                            assert!(closest >= q.h * (1.0 - 1e-12), "{closest} < {}", q.h);
+                            assert!(closest >= q.h() * (1.0 - 1e-12), "{closest} < {}", q.h());
                         }
                     }
                 }

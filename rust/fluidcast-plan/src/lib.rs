@@ -411,7 +411,7 @@ impl Parts {
     #[inline]
     fn covered(&self, p: &ViewParticle, z: f64) -> u64 {
         let dz = z - p.c[2];
-        let lim = (p.h * p.h - dz * dz) * (1.0 - 1e-9);
+        let lim = (p.h() * p.h() - dz * dz) * (1.0 - 1e-9);
         if lim <= 0.0 {
             return 0;
         }
@@ -465,23 +465,23 @@ fn cell_bounds(
     let mut cover = [0u64; 64];
     for &j in &grid.refs[cell.start as usize..cell.end as usize] {
         let p = &grid.particles[j as usize];
-        let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
+        let r = fluidcast_grid::within(zs, p.c[2] - p.h(), p.c[2] + p.h());
         if r.is_empty() {
             continue;
         }
         for k in r.clone() {
             any[k] = true;
-            qlo[k] = qlo[k].min(p.a);
-            qhi[k] = qhi[k].max(p.a);
+            qlo[k] = qlo[k].min(p.a());
+            qhi[k] = qhi[k].max(p.a());
         }
         if params.field != FieldKind::Csph {
-            let wmax = params.kernel.eval(0.0, p.h);
+            let wmax = params.kernel.eval(0.0, p.h());
             let (slo, shi) = match params.field {
                 FieldKind::Sph => {
-                    let s = p.a * p.v * wmax;
+                    let s = p.a() * p.v() * wmax;
                     (s.min(0.0), s.max(0.0))
                 }
-                _ => (0.0, p.m * wmax),
+                _ => (0.0, p.m() * wmax),
             };
             for k in r.clone() {
                 sum_lo[k] += slo;
@@ -502,7 +502,7 @@ fn cell_bounds(
     let central = |p: &ViewParticle| {
         let s = if bundle.parallel { 1.0 } else { p.c[2] };
         let (dx, dy) = (mx * s - p.c[0], my * s - p.c[1]);
-        4.0 * (dx * dx + dy * dy) < p.h * p.h
+        4.0 * (dx * dx + dy * dy) < p.h() * p.h()
     };
     for pass in [true, false] {
         for &j in &grid.refs[cell.start as usize..cell.end as usize] {
@@ -513,7 +513,7 @@ fn cell_bounds(
             if central(p) != pass {
                 continue;
             }
-            let r = fluidcast_grid::within(zs, p.c[2] - p.h, p.c[2] + p.h);
+            let r = fluidcast_grid::within(zs, p.c[2] - p.h(), p.c[2] + p.h());
             if r.is_empty() {
                 continue;
             }
@@ -587,7 +587,7 @@ fn cover_samples(
         todo &= todo - 1;
         // The disc must at least reach over a sub-bundle's half diagonal.
         let dzk = zs[k] - p.c[2];
-        let lim = p.h * p.h - dzk * dzk;
+        let lim = p.h() * p.h() - dzk * dzk;
         let scale = if bundle.parallel { 1.0 } else { zs[k] * zs[k] };
         if lim <= parts.r2_min * scale {
             continue;
@@ -880,14 +880,11 @@ mod tests {
             // Centred on one corner: the far corner is the opposite one.
             let d2 = (x1 - x0).powi(2) + (y1 - y0).powi(2);
             for (inside, covered) in [(0.5e-9, false), (2e-9, true)] {
-                let h = (d2 / (1.0 - inside)).sqrt();
-                let p = ViewParticle {
-                    c: [x0, y0, z],
-                    h,
-                    v: 1.0,
-                    a: 1.0,
-                    m: 1.0,
-                };
+                // H in single precision, as particles hold it; the centre moved along x
+                // (from the corner) so that the far corner lies at exactly that depth inside.
+                let h = f64::from((d2 / (1.0 - inside)).sqrt() as f32);
+                let dx = (h * h * (1.0 - inside) - (y1 - y0).powi(2)).sqrt();
+                let p = ViewParticle::new([x1 - dx, y0, z], h, 1.0, 1.0, 1.0);
                 assert_eq!(bundle.covered_by(&p, z), covered, "{parallel} {inside}");
                 assert_eq!(
                     parts.covered(&p, z) == parts.all,
@@ -899,13 +896,7 @@ mod tests {
             // corner in x and in y (1.7² + 1.7² = 5.78 < 7): it covers every part, and the
             // early exit (nearest column and row) must not skip it.
             let c = [x1 - 1.7, y1 - 1.7, z];
-            let p = ViewParticle {
-                c,
-                h: 7f64.sqrt(),
-                v: 1.0,
-                a: 1.0,
-                m: 1.0,
-            };
+            let p = ViewParticle::new(c, 7f64.sqrt(), 1.0, 1.0, 1.0);
             assert!(bundle.covered_by(&p, z));
             assert_eq!(parts.covered(&p, z), parts.all, "{parallel}");
         }
@@ -964,7 +955,7 @@ mod tests {
                         let z = depths.z[k];
                         let reached = refs.iter().any(|&j| {
                             let q = &grid.particles[j as usize];
-                            q.c[2] - q.h <= z && z <= q.c[2] + q.h
+                            q.c[2] - q.h() <= z && z <= q.c[2] + q.h()
                         });
                         let covered = split.iter().all(|part| {
                             refs.iter()
@@ -1021,7 +1012,7 @@ mod tests {
             ];
             // Support radius r bundle sizes (and at least a tiny one for one-pixel bundles).
             let h = (r * (bx1 - bx0).max(by1 - by0)).max(1e-4);
-            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
             let want = split.iter().enumerate().fold(0u64, |m, (s, b)| m | (u64::from(b.covered_by(&p, z)) << s));
             prop_assert_eq!(parts.covered(&p, z), want);
             prop_assert_eq!(parts.all.count_ones() as usize, split.len());

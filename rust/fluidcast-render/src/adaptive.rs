@@ -212,10 +212,10 @@ impl BundleLines {
     /// test is [`Ray::passage`]. Empty ranges when none can.
     #[inline(always)]
     fn footprint(&self, p: &ViewParticle) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
-        let (z0, z1) = (p.c[2] - p.h, p.c[2] + p.h);
+        let (z0, z1) = (p.c[2] - p.h(), p.c[2] + p.h());
         let reach = |lines: &[(f64, f64)], c: f64| {
-            let (lo, hi) = (c - p.h, c + p.h);
-            let slack = 1e-9 * (lo.abs().max(hi.abs()) + p.h);
+            let (lo, hi) = (c - p.h(), c + p.h());
+            let slack = 1e-9 * (lo.abs().max(hi.abs()) + p.h());
             // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
             let hits = |&(o, d): &(f64, f64)| {
                 let (a, b) = (o + z0.max(0.0) * d, o + z1.max(0.0) * d);
@@ -396,7 +396,7 @@ mod tests {
         ) {
             let rays = bundle_rays(parallel, 8 * bx, 8 * by);
             let lines = BundleLines::new(&rays, 8);
-            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
             let (cols, rows) = lines.footprint(&p);
             for (r, ray) in rays.iter().enumerate() {
                 if ray.passage(&p).is_some_and(|pass| pass.z1 >= 0.0) {
@@ -434,7 +434,7 @@ mod tests {
             let w = [d[1] * u[2] - d[2] * u[1], d[2] * u[0] - d[0] * u[2], d[0] * u[1] - d[1] * u[0]];
             let (ca, sa) = (angle.cos(), angle.sin());
             let c = [0, 1, 2].map(|k| ray.o[k] + z * ray.d[k] + f * h * (ca * u[k] + sa * w[k]));
-            let p = ViewParticle { c, h, v: 1.0, a: 1.0, m: 1.0 };
+            let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
             prop_assert!(ray.passage(&p).is_some());
             let (cols, rows) = lines.footprint(&p);
             prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
@@ -446,8 +446,8 @@ mod tests {
     /// particle's depth extent in front of the eye, by solving for the depths where it does
     /// (not by the footprint's end-point test); `grow` widens H.
     fn lines_meeting(lines: &[(f64, f64)], c: f64, p: &ViewParticle, grow: f64) -> Vec<usize> {
-        let (za, zb) = ((p.c[2] - p.h).max(0.0), (p.c[2] + p.h).max(0.0));
-        let h = p.h * (1.0 + grow);
+        let (za, zb) = ((p.c[2] - p.h()).max(0.0), (p.c[2] + p.h()).max(0.0));
+        let h = p.h() * (1.0 + grow);
         let meets = |&(o, d): &(f64, f64)| {
             if d == 0.0 {
                 return (o - c).abs() <= h;
@@ -467,13 +467,7 @@ mod tests {
             let centre = rays[3 * 8 + 3].d.map(|d| d * 0.5);
             let o = rays[3 * 8 + 3].o;
             let c = [o[0] + centre[0], o[1] + centre[1], o[2] + centre[2]];
-            let p = ViewParticle {
-                c,
-                h: 0.01,
-                v: 1.0,
-                a: 1.0,
-                m: 1.0,
-            };
+            let p = ViewParticle::new(c, 0.01, 1.0, 1.0, 1.0);
             let (cols, rows) = lines.footprint(&p);
             assert!(cols.contains(&3) && rows.contains(&3), "{cols:?} {rows:?}");
             assert!(cols.len() <= 3 && rows.len() <= 3, "{cols:?} {rows:?}");

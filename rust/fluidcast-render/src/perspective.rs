@@ -305,7 +305,7 @@ fn bin(
     for b in &mut bins {
         b.sort_by(|&a, &b| {
             let (a, b) = (&vps[a as usize], &vps[b as usize]);
-            (a.c[2] - a.h).total_cmp(&(b.c[2] - b.h))
+            (a.c[2] - a.h()).total_cmp(&(b.c[2] - b.h()))
         });
     }
     Ok(bins)
@@ -346,8 +346,8 @@ fn resample(
             let local: Vec<ViewParticle> = list
                 .iter()
                 .map(|&k| vps[k as usize])
-                .take_while(|p| p.c[2] - p.h <= z_hi)
-                .filter(|p| p.c[2] + p.h >= z_lo)
+                .take_while(|p| p.c[2] - p.h() <= z_hi)
+                .filter(|p| p.c[2] + p.h() >= z_lo)
                 .collect();
             let mut sums = Sums::new(l);
             for (c, span) in touched.iter_mut().enumerate() {

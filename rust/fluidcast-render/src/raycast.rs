@@ -53,14 +53,14 @@ impl Sums {
         }
         // W = norm(H)·shape(r/H): the normalisation and the particle's weights once, the
         // shape per sample, in a loop per kernel that the compiler can vectorise.
-        let norm = kernel.norm(p.h);
+        let norm = kernel.norm(p.h());
         let along = Along {
             t: pass.t,
             r2: pass.r2,
             dd: ray.dd,
-            inv_h: 1.0 / p.h,
+            inv_h: 1.0 / p.h(),
         };
-        let w = [p.v * p.a * norm, p.v * norm, p.m * norm];
+        let w = [p.v() * p.a() * norm, p.v() * norm, p.m() * norm];
         let out = [
             &mut self.weighted[range.clone()],
             &mut self.shepard[range.clone()],

@@ -108,7 +108,7 @@ impl<'a> TileCaster<'a> {
             .iter()
             .map(|&j| {
                 let p = vps[j as usize];
-                (p, self.iso_values.map_or(p.a, |v| v[j as usize] as f64))
+                (p, self.iso_values.map_or(p.a(), |v| v[j as usize] as f64))
             })
             .collect();
         let mut scratch = SurfaceScratch::new(n);

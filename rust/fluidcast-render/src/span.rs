@@ -57,7 +57,7 @@ impl RayGroup {
             dd: self.dd,
             mask: [0.0; LANES],
         };
-        let h2 = p.h * p.h;
+        let h2 = p.h() * p.h();
         let mut any = false;
         for l in 0..LANES {
             let (cx, cy, cz) = (p.c[0] - o[0][l], p.c[1] - o[1][l], p.c[2] - o[2][l]);
@@ -197,20 +197,20 @@ impl SpanSums {
         kernel: Kernel,
         field: FieldKind,
     ) {
-        let ks = within(zs, p.c[2] - p.h, p.c[2] + p.h);
+        let ks = within(zs, p.c[2] - p.h(), p.c[2] + p.h());
         if ks.is_empty() || cols.is_empty() {
             return;
         }
         // W = norm(H)·shape(r/H), the weights as Sums::scatter forms them.
-        let norm = kernel.norm(p.h);
+        let norm = kernel.norm(p.h());
         let w = match field {
-            FieldKind::Csph | FieldKind::Sph => p.v * p.a * norm,
-            FieldKind::Density => p.m * norm,
+            FieldKind::Csph | FieldKind::Sph => p.v() * p.a() * norm,
+            FieldKind::Density => p.m() * norm,
         };
         let at = Particle {
             p,
             ks,
-            w: [w, p.v * norm],
+            w: [w, p.v() * norm],
         };
         for j in rows {
             for g in cols.start / LANES..=(cols.end - 1) / LANES {
@@ -273,7 +273,7 @@ impl SpanSums {
         let (r2, _) = S::as_simd_f64s(&near.r2);
         let (dd, _) = S::as_simd_f64s(&near.dd);
         let (mask, _) = S::as_simd_f64s(&near.mask);
-        let inv_h = simd.splat_f64s(1.0 / at.p.h);
+        let inv_h = simd.splat_f64s(1.0 / at.p.h());
         let [wn, wd] = at.w.map(|w| simd.splat_f64s(w));
         for k in at.ks.clone() {
             let z = simd.splat_f64s(zs[k]);
@@ -432,10 +432,10 @@ mod tests {
             let cols = c0.min(c1)..c0.max(c1);
             // The particle near the middle ray of row j, at the given depth.
             let mid = &rays[j * w + 5];
-            let p = ViewParticle {
-                c: [0, 1, 2].map(|k| mid.o[k] + depth * mid.d[k] + c[k] * h * 3.0),
-                h, v: 1.0, a: 1.0, m: 1.0,
-            };
+            let p = ViewParticle::new(
+                [0, 1, 2].map(|k| mid.o[k] + depth * mid.d[k] + c[k] * h * 3.0),
+                h, 1.0, 1.0, 1.0,
+            );
             for g in 0..2 {
                 let got = bundle.rows[j * bundle.groups + g].near(&p, &cols, g, &live[g * LANES..][..LANES]);
                 let mut any = false;

@@ -274,14 +274,14 @@ impl SurfaceCaster<'_> {
             if !k.is_empty() {
                 (lo, hi) = (lo.min(k.start), hi.max(k.end));
             }
-            let norm = kernel.norm(p.h);
+            let norm = kernel.norm(p.h());
             scratch.passes.push(Pass {
                 c: p.c,
                 t: pass.t,
                 r2: pass.r2,
-                inv_h: 1.0 / p.h,
+                inv_h: 1.0 / p.h(),
                 k,
-                w: [p.v * p.a, p.v, p.m, p.v * b].map(|x| x * norm),
+                w: [p.v() * p.a(), p.v(), p.m(), p.v() * b].map(|x| x * norm),
             });
         }
         let mut out = SurfaceRay {

@@ -125,15 +125,15 @@ pub fn f32_explanation(
             for &r in &refs {
                 let p = &g.particles[r as usize];
                 let d = ray.distance_at(z, p);
-                let q = d / p.h;
+                let q = d / p.h();
                 if q < 1.0 - 1e-4 {
                     inner += 1;
                 } else if q < 1.0 + 1e-4 {
                     at_edge += 1;
                 }
-                let w = kernel.eval(d, p.h);
-                ws += p.v * w;
-                wq += p.v * p.a * w;
+                let w = kernel.eval(d, p.h());
+                ws += p.v() * w;
+                wq += p.v() * p.a() * w;
             }
             edge |= inner == 0 && at_edge > 0;
             opaque |= ws > 0.0 && tf.eval(wq / ws).1 > 0.999;
