@@ -111,6 +111,10 @@ pub struct SamplingArgs {
     /// pixel, the reference's samples; 2 casts a quarter of the columns and interpolates).
     #[arg(long, default_value_t = 1)]
     pub grid_cell: u32,
+    /// --mode perspective-grid: resample every tile of columns in every slab, also behind
+    /// pixels that have stopped (the same image, slower: for measuring occlusion culling).
+    #[arg(long)]
+    pub no_occlusion_culling: bool,
 }
 
 /// Parses `off` or a tolerance in [0, 1].
@@ -171,6 +175,7 @@ impl SamplingArgs {
             sampling_scale: v.sampling_scale,
             grid,
             adaptive,
+            occlusion_culling: !self.no_occlusion_culling,
             ..Default::default()
         })
     }

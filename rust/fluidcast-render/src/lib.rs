@@ -102,6 +102,10 @@ pub struct RenderParams {
     /// `None`: emission–absorption as the transfer function gives it. Drawn by
     /// [`render_reference`]; the other renderers refuse it.
     pub volume_lighting: Option<Lighting>,
+    /// Occlusion culling in the perspective grid renderer (on by default): a tile of grid
+    /// columns is not resampled once every pixel that reads it has stopped (early ray
+    /// termination at `min_transmittance`), which changes no pixel. Off: for measuring it.
+    pub occlusion_culling: bool,
 }
 
 impl RenderParams {
@@ -159,6 +163,7 @@ impl Default for RenderParams {
             support_depths: None,
             surfaces: None,
             volume_lighting: None,
+            occlusion_culling: true,
         }
     }
 }
@@ -228,6 +233,9 @@ pub struct RenderStats {
     pub gpu_memory_bytes: u64,
     /// Screen tiles the view was rendered in ([`render_in_tiles`]); 0: one render.
     pub tiles: usize,
+    /// Perspective grid only: particle references of tiles not resampled because every
+    /// pixel they reach had stopped ([`RenderParams::occlusion_culling`]).
+    pub culled: u64,
 }
 
 impl RenderStats {

@@ -237,13 +237,30 @@ pub fn render_perspective_grid(
     let (mut resample_ms, mut raycast_ms) = (0.0, 0.0);
     let mut slab = Slab::new(&layout, params.surfaces.as_deref())?;
     let n = depths.len();
+    let mut skip = vec![false; bins.len()];
     for s0 in (0..n).step_by(SLAB) {
         if rays.iter().all(|r| r.comp.done) {
             break;
         }
         let t = Instant::now();
+        if params.occlusion_culling {
+            occluded_tiles(&layout, &rays, &mut skip);
+            stats.culled += skip
+                .iter()
+                .zip(&bins)
+                .filter(|(&s, _)| s)
+                .map(|(_, b)| b.len() as u64)
+                .sum::<u64>();
+        }
         let own = s0..(s0 + SLAB).min(n);
-        resample(&mut slab, (&layout, params), &vps, &bins, &depths, own);
+        resample(
+            &mut slab,
+            (&layout, params),
+            &vps,
+            (&bins, &skip),
+            &depths,
+            own,
+        );
         resample_ms += ms(t);
         let t = Instant::now();
         rays.par_chunks_mut(w as usize)
@@ -256,6 +273,36 @@ pub fn render_perspective_grid(
     stats.stages.push(("raycast", raycast_ms));
     stats.stages.push(("total", ms(t0)));
     Ok((image, stats))
+}
+
+/// Columns around a column whose values a pixel may read: bilinear interpolation between
+/// its two nearest columns each way, and central differences across them (surface normals).
+const READ_REACH: u32 = 3;
+
+/// Occlusion culling: per tile of `TILE × TILE` columns, whether every pixel that may read
+/// one of its columns (the tile grown by [`READ_REACH`] columns) has stopped. Such a tile
+/// need not be resampled: no pixel that still marches reads it. A two-level opacity buffer
+/// (pixels, then columns), rebuilt before each slab.
+fn occluded_tiles(layout: &Layout, rays: &[SurfaceRay], skip: &mut [bool]) {
+    let w = layout.frame.width;
+    let (cols, rows, c) = (layout.cols, layout.rows, layout.cell);
+    // Columns some pixel of whose cell × cell block still marches.
+    let mut open = vec![false; (cols * rows) as usize];
+    for (k, r) in rays.iter().enumerate() {
+        if !r.comp.done {
+            let (i, j) = (k as u32 % w, k as u32 / w);
+            open[((j / c).min(rows - 1) * cols + (i / c).min(cols - 1)) as usize] = true;
+        }
+    }
+    let tiles_x = cols.div_ceil(TILE);
+    skip.par_iter_mut().enumerate().for_each(|(t, s)| {
+        let (bx, by) = (t as u32 % tiles_x, t as u32 / tiles_x);
+        let x0 = (bx * TILE).saturating_sub(READ_REACH);
+        let x1 = ((bx + 1) * TILE + READ_REACH).min(cols);
+        let y0 = (by * TILE).saturating_sub(READ_REACH);
+        let y1 = ((by + 1) * TILE + READ_REACH).min(rows);
+        *s = !(y0..y1).any(|gj| (x0..x1).any(|gi| open[(gj * cols + gi) as usize]));
+    });
 }
 
 /// Bins the particles into tiles of `TILE × TILE` columns by their screen rectangles,
@@ -318,7 +365,7 @@ fn resample(
     slab: &mut Slab,
     (layout, params): (&Layout, &RenderParams),
     vps: &[ViewParticle],
-    bins: &[Vec<u32>],
+    (bins, skip): (&[Vec<u32>], &[bool]),
     depths: &SampleDepths,
     own: Range<usize>,
 ) {
@@ -339,9 +386,14 @@ fn resample(
         .par_chunks_mut(per_tile * SLOT)
         .zip(iso_blocks.into_par_iter())
         .zip(slab.touched.par_chunks_mut(per_tile))
-        .zip(bins.par_iter())
+        .zip(bins.par_iter().zip(skip.par_iter()))
         .enumerate()
-        .for_each(|(t, (((vol, iso), touched), list))| {
+        .for_each(|(t, (((vol, iso), touched), (list, &skip)))| {
+            if skip {
+                // Occluded: nothing a marching pixel reads.
+                touched.iter_mut().for_each(|span| *span = 0..0);
+                return;
+            }
             let (bx, by) = (t as u32 % tiles_x, t as u32 / tiles_x);
             let local: Vec<ViewParticle> = list
                 .iter()

@@ -185,6 +185,7 @@ fn paste(image: &mut Image, tile: &Image, rect: [u32; 4]) {
 fn add_stats(total: &mut RenderStats, tile: &RenderStats) {
     total.samples += tile.samples;
     total.pairs += tile.pairs;
+    total.culled += tile.culled;
     total.cells += tile.cells;
     total.depth_samples = tile.depth_samples;
     total.near = tile.near;
