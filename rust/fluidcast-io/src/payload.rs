@@ -12,6 +12,7 @@
 //! grow past the size the header states, so a lying header or a compression bomb is an error,
 //! never an allocation of what the file merely claims.
 
+use rayon::prelude::*;
 use std::io::Write;
 
 use base64::Engine;
@@ -222,20 +223,38 @@ impl BlockHeader {
             ));
         }
         // Reserve from the bytes present, never from the header's claim; the vector grows as
-        // real data arrives, capped per block.
+        // real data arrives, capped per block. Blocks are independent: a batch of them is
+        // decompressed in parallel, each into its own buffer, then appended in order.
         let mut out = Vec::with_capacity(total_c.saturating_mul(4));
+        let mut spans = Vec::with_capacity(nb);
         let mut pos = 0usize;
-        for (i, &cs) in self.compressed.iter().enumerate() {
-            let blk = data
-                .get(pos..pos + cs)
-                .ok_or_else(|| format!("compressed block {i} of {nb} runs past the data"))?;
-            let size = if i + 1 == nb {
-                self.last_size
-            } else {
-                self.block_size
-            };
-            decompress_into(c, blk, size, &mut out)?;
+        for &cs in &self.compressed {
+            spans.push((pos, cs));
             pos += cs;
+        }
+        let batch = rayon::current_num_threads().max(1) * 8;
+        for (b, chunk) in spans.chunks(batch).enumerate() {
+            let blocks: Vec<Result<Vec<u8>, String>> = chunk
+                .par_iter()
+                .enumerate()
+                .map(|(k, &(at, cs))| {
+                    let i = b * batch + k;
+                    let blk = data.get(at..at + cs).ok_or_else(|| {
+                        format!("compressed block {i} of {nb} runs past the data")
+                    })?;
+                    let size = if i + 1 == nb {
+                        self.last_size
+                    } else {
+                        self.block_size
+                    };
+                    let mut one = Vec::with_capacity(cs.saturating_mul(4).min(size));
+                    decompress_into(c, blk, size, &mut one)?;
+                    Ok(one)
+                })
+                .collect();
+            for one in blocks {
+                out.extend_from_slice(&one?);
+            }
         }
         Ok(out)
     }
