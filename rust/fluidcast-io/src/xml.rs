@@ -94,12 +94,7 @@ impl Appended<'_> {
     /// overlap means a header of the wrong size (`header_type` mislabelled) or damage.
     fn check_extent(&self, off: usize, used: usize) -> Result<(), String> {
         let end = off.saturating_add(used);
-        let next = self
-            .offsets
-            .iter()
-            .copied()
-            .find(|&o| o > off)
-            .unwrap_or(self.end);
+        let next = next_offset(&self.offsets, off, self.end);
         if end != next {
             return Err(format!(
                 "its data ends at byte {end} of the appended section but the next {} at byte \
@@ -113,6 +108,12 @@ impl Appended<'_> {
         }
         Ok(())
     }
+}
+
+/// Where the payload at `off` must end: at the next array's offset (`offsets` sorted), or at
+/// `end`, the end of the appended data.
+fn next_offset(offsets: &[usize], off: usize, end: usize) -> usize {
+    offsets.iter().copied().find(|&o| o > off).unwrap_or(end)
 }
 
 /// Splits the file into the XML head and the appended data, checking the `<AppendedData>`
@@ -871,12 +872,7 @@ impl LazyXml {
             .get("offset")
             .and_then(|s| s.trim().parse().ok())
             .unwrap_or(usize::MAX);
-        let next = app
-            .offsets
-            .iter()
-            .copied()
-            .find(|&o| o > off)
-            .unwrap_or(app.end);
+        let next = next_offset(&app.offsets, off, app.end);
         let bytes = if off <= next {
             read_range(f, app.start + off as u64, next - off, "an array's data")?
         } else {
