@@ -161,8 +161,8 @@ fn bench_prints_a_table_and_json() {
 
 #[test]
 fn gpu_backend_from_the_command_line() {
-    let dir = std::env::temp_dir().join(format!("fluidcast-gpu-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
     let s = sample();
     // The reference renderer has no GPU path: a clear error, before any GPU is touched.
     let (ok, _, err) = run(&[

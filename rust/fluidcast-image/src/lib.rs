@@ -370,8 +370,8 @@ mod tests {
 
     #[test]
     fn exr_round_trip_and_compare() {
-        let dir = std::env::temp_dir().join(format!("fluidcast-img-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
         let mut a = Image::new(5, 3);
         let k = a.index(4, 2);
         a.rgba[k] = [0.25, 0.5, 0.125, 0.75];
