@@ -362,11 +362,11 @@ impl LazyDataset {
         }
     }
 
-    /// The points, decoded now (borrowed from a file read at once).
-    pub fn points(&self) -> Result<std::borrow::Cow<'_, [[f64; 3]]>, ReadError> {
+    /// The points, decoded now, x, y, z of each in turn (borrowed from a file read at once).
+    pub fn points(&self) -> Result<std::borrow::Cow<'_, [f64]>, ReadError> {
         match self {
             LazyDataset::Xml(x) => x.points().map(std::borrow::Cow::Owned),
-            LazyDataset::Read(d) => Ok(std::borrow::Cow::Borrowed(&d.points)),
+            LazyDataset::Read(d) => Ok(std::borrow::Cow::Borrowed(bytemuck::cast_slice(&d.points))),
         }
     }
 

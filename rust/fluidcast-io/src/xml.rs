@@ -902,11 +902,12 @@ impl LazyXml {
             .collect()
     }
 
-    /// All pieces' points, decoded now.
-    pub fn points(&self) -> Result<Vec<[f64; 3]>, ReadError> {
+    /// All pieces' points, decoded now: x, y, z of each point in turn (not grouped, so
+    /// that the decoded values are not copied once more).
+    pub fn points(&self) -> Result<Vec<f64>, ReadError> {
         let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
         let f = File::open(&self.path).map_err(|e| err(e.into()))?;
-        let mut points: Vec<[f64; 3]> = Vec::new();
+        let mut points: Vec<f64> = Vec::new();
         for (i, &n) in self.pieces.iter().enumerate() {
             let d = self
                 .decls
@@ -915,7 +916,11 @@ impl LazyXml {
             match d {
                 Some(d) => {
                     if let Some(a) = self.decode(d, Some(n), &f).map_err(err)? {
-                        points.extend(crate::xyz(&a.values));
+                        if points.is_empty() {
+                            points = a.values;
+                        } else {
+                            points.extend_from_slice(&a.values);
+                        }
                     }
                 }
                 None if n == 0 => {}

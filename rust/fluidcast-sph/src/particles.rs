@@ -224,7 +224,8 @@ pub trait ParticleSource {
     fn field_scalar(&self, name: &str) -> Option<f64>;
     /// Every point array, decoded or not, as (name, components).
     fn arrays(&self) -> Vec<(String, usize)>;
-    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError>;
+    /// The points, x, y, z of each in turn.
+    fn points(&self) -> Result<Cow<'_, [f64]>, ParticleError>;
     /// Point array `name`; `None` when there is none.
     fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError>;
 }
@@ -246,8 +247,8 @@ impl ParticleSource for Dataset {
             .chain(self.undecoded.iter().cloned())
             .collect()
     }
-    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError> {
-        Ok(Cow::Borrowed(&self.points))
+    fn points(&self) -> Result<Cow<'_, [f64]>, ParticleError> {
+        Ok(Cow::Borrowed(bytemuck::cast_slice(&self.points)))
     }
     fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError> {
         Ok(self.point_array(name).map(Cow::Borrowed))
@@ -270,7 +271,7 @@ impl ParticleSource for LazyDataset {
     fn arrays(&self) -> Vec<(String, usize)> {
         self.point_arrays()
     }
-    fn points(&self) -> Result<Cow<'_, [[f64; 3]]>, ParticleError> {
+    fn points(&self) -> Result<Cow<'_, [f64]>, ParticleError> {
         Ok(LazyDataset::points(self)?)
     }
     fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError> {
@@ -498,7 +499,11 @@ struct Located {
 
 fn locate(src: &impl ParticleSource, needs_spacing: bool) -> Result<Located, ParticleError> {
     let file = src.path().to_path_buf();
-    let pts = src.points()?;
+    let flat = src.points()?;
+    let pts: &[[f64; 3]] = bytemuck::try_cast_slice(&flat).map_err(|_| ParticleError::Other {
+        file: file.clone(),
+        message: format!("{} point coordinates do not make whole points", flat.len()),
+    })?;
     let n = pts.len();
     if n == 0 {
         return Err(ParticleError::NoPoints { file });
@@ -511,12 +516,12 @@ fn locate(src: &impl ParticleSource, needs_spacing: bool) -> Result<Located, Par
     if count == 0 {
         return Err(ParticleError::NoFinitePoints { file, count: n });
     }
-    let far = far_outliers(&pts);
+    let far = far_outliers(pts);
     let outliers = far
         .first()
         .map(|&i| far_outlier_warning(pts[i], i, far.len(), count));
     let spacing = if needs_spacing {
-        spacing_without(&pts, &far)
+        spacing_without(pts, &far)
     } else {
         None
     };
@@ -775,7 +780,7 @@ impl Particles {
     pub fn values_of(src: &impl ParticleSource, q: &Quantity) -> Result<Vec<f32>, ParticleError> {
         let kept: Vec<bool> = src
             .points()?
-            .iter()
+            .chunks_exact(3)
             .map(|p| p.iter().all(|v| v.is_finite()))
             .collect();
         let count = kept.iter().filter(|&&k| k).count();
