@@ -68,8 +68,8 @@ pub fn tile_particles_within(
 
 /// The tiles: `rect` (pixels `[x0, x1, y0, y1]`, ends exclusive), split in two across its
 /// longer side at a multiple of `align` pixels, and so on, until each holds at most
-/// `max_particles` particles (or is one `align` square). Tiles no particle reaches are left
-/// out (their pixels stay empty).
+/// `max_particles` particles (or is one `align` square, or neither half would shed a tenth
+/// of its particles). Tiles no particle reaches are left out (their pixels stay empty).
 fn split_rects(
     count: &impl Fn([u32; 4]) -> usize,
     rect: [u32; 4],
@@ -78,15 +78,31 @@ fn split_rects(
     out: &mut Vec<[u32; 4]>,
 ) {
     let n = count(rect);
-    let (w, h) = (rect[1] - rect[0], rect[3] - rect[2]);
-    if n <= max_particles || (w <= align && h <= align) {
-        if n > 0 {
-            out.push(rect);
+    if n > max_particles {
+        if let Some((a, b)) = halves(rect, align) {
+            // Particles larger than the tile reach both halves: splitting on would only
+            // multiply the renders, not shed particles.
+            if count(a).max(count(b)) * 10 <= n * 9 {
+                split_rects(count, a, max_particles, align, out);
+                split_rects(count, b, max_particles, align, out);
+                return;
+            }
         }
-        return;
+    }
+    if n > 0 {
+        out.push(rect);
+    }
+}
+
+/// `rect` cut in two across its longer side at a multiple of `align` pixels; `None` for a
+/// rectangle of one `align` square.
+fn halves(rect: [u32; 4], align: u32) -> Option<([u32; 4], [u32; 4])> {
+    let (w, h) = (rect[1] - rect[0], rect[3] - rect[2]);
+    if w <= align && h <= align {
+        return None;
     }
     let cut = |lo: u32, hi: u32| ((lo + hi) / 2 / align).max(lo / align + 1) * align;
-    let (a, b) = if w >= h {
+    Some(if w >= h {
         let x = cut(rect[0], rect[1]);
         (
             [rect[0], x, rect[2], rect[3]],
@@ -98,9 +114,7 @@ fn split_rects(
             [rect[0], rect[1], rect[2], y],
             [rect[0], rect[1], y, rect[3]],
         )
-    };
-    split_rects(count, a, max_particles, align, out);
-    split_rects(count, b, max_particles, align, out);
+    })
 }
 
 /// Each particle's support on screen, `[x0, x1, y0, y1]` in pixels (ends exclusive), found
@@ -158,6 +172,24 @@ fn surfaces_of(s: &Option<Arc<Surfaces>>, keep: &[usize]) -> Option<Arc<Surfaces
         }),
         _ => s.clone(),
     })
+}
+
+/// The depth limit of a tile's render: the caller's inside `rect`, 0 outside, so that no ray
+/// outside the tile samples anything (the border particles of a tile reach bundles around
+/// it, whose pixels are thrown away) and its plan leaves those bundles out.
+fn limit_to(params: &RenderParams, rect: [u32; 4]) -> Arc<[f32]> {
+    let w = params.width;
+    (0..params.height)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let inside = i >= rect[0] && i < rect[1] && j >= rect[2] && j < rect[3];
+            if inside {
+                params.depth_limit_at(i, j) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// Copies the pixels of `rect` (colour, depth and every AOV) from `tile` into `image`.
@@ -273,6 +305,7 @@ pub fn render_in_tiles<E: From<RenderError>>(
             flags.as_ref().map(|f| keep.iter().map(|&j| f[j]).collect());
         let mut p = params.clone();
         p.surfaces = surfaces_of(&params.surfaces, &keep);
+        p.depth_limit = Some(limit_to(&params, rect));
         drop(keep);
         let (tile, tile_stats) = render(&part, part_flags.as_deref(), &p)?;
         add_stats(&mut stats, &tile_stats);
@@ -310,7 +343,10 @@ mod tests {
             let mut covered = vec![0u8; 70 * 53];
             for r in &tiles {
                 assert!(r[0] % align == 0 && r[2] % align == 0, "{r:?}");
-                assert!(count(*r) <= max || (r[1] - r[0] <= align && r[3] - r[2] <= align));
+                let n = count(*r);
+                let kept_whole =
+                    halves(*r, align).is_none_or(|(a, b)| count(a).max(count(b)) * 10 > n * 9);
+                assert!(n <= max || kept_whole, "{r:?}: {n} > {max}");
                 for j in r[2]..r[3] {
                     for i in r[0]..r[1] {
                         covered[(j * 70 + i) as usize] += 1;
