@@ -136,9 +136,12 @@ fn tiles_render_parts_and_every_reaching_particle_counts() {
     .unwrap();
     assert_eq!(max_diff(&whole, &tiled), 0.0);
     // Tiles hold parts. These particles are large (a fifth of the view), so splitting stops
-    // where halves would keep nine tenths each: above the asked quarter, below 60 %.
+    // where most would be in both halves: above the asked quarter, below 60 %.
     assert!(sizes.len() >= 4, "{sizes:?}");
-    assert!(sizes.iter().all(|&n| n > 0 && n < p.len() * 6 / 10), "{sizes:?}");
+    assert!(
+        sizes.iter().all(|&n| n > 0 && n < p.len() * 6 / 10),
+        "{sizes:?}"
+    );
     // Dropping each tile's last particle shows.
     let (short, _) = render_in_tiles(&p, None, &cam, &prm, (max, 0), |q, _, prm| {
         let keep: Vec<usize> = (0..q.len() - 1).collect();
