@@ -683,24 +683,25 @@ impl Particles {
             },
         )?;
         let mass_check = |i, m| single_precision(&file, i, false, &[("mass", m)]);
-        let masses = match spec.mass.as_deref() {
-            Some(name) => {
-                let m = array(src, name)?;
+        let mass = spec.mass.clone().or_else(|| first_of(src, &MASS_NAMES));
+        let masses = match (mass, &volume) {
+            // The mass array the volumes came from: not decoded again.
+            (Some(name), Volume::Ratio(m, _)) if m.name == name => {
+                kept_values(kept, count, per_value(m, 1.0), mass_check)?
+            }
+            (Some(name), _) => {
+                drop(volume);
+                let m = array(src, &name)?;
                 kept_values(kept, count, per_value(&m, 1.0), mass_check)?
             }
-            None => match (first_of(src, &MASS_NAMES), first_of(src, &DENSITY_NAMES)) {
-                (Some(m), _) => {
-                    let m = array(src, &m)?;
-                    kept_values(kept, count, per_value(&m, 1.0), mass_check)?
-                }
-                (None, Some(d)) => {
+            (None, _) => match first_of(src, &DENSITY_NAMES) {
+                Some(d) => {
                     let d = array(src, &d)?;
                     kept_values(kept, count, |i| volume.at(i) * d.values[i], mass_check)?
                 }
-                _ => kept_values(kept, count, |i| volume.at(i), mass_check)?,
+                None => kept_values(kept, count, |i| volume.at(i), mass_check)?,
             },
         };
-        drop(volume);
         notes.extend(at.outliers.clone());
         Ok(Particles {
             notes,
