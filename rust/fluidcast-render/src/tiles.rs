@@ -23,7 +23,7 @@ use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, ViewFrame};
 use rayon::prelude::*;
 
-use crate::adaptive::SURFACE_THRESHOLD;
+use crate::adaptive::plan_surface;
 use crate::{ms, IsoField, RenderError, RenderParams, RenderStats, Surfaces};
 
 /// Bytes of per-view working memory a tile's particle costs the adaptive CPU renderer where
@@ -274,13 +274,7 @@ pub fn render_in_tiles<E: From<RenderError>>(
     let Some(range) = fluidcast_grid::sampled_range(&frame, params.support_depths, || None) else {
         return render(particles, surface, &params);
     };
-    let flags = match surface {
-        Some(s) => Some(std::borrow::Cow::Borrowed(s)),
-        None if params.adaptive.uses_surface_cells() => Some(std::borrow::Cow::Owned(
-            particles.surface_flags(SURFACE_THRESHOLD),
-        )),
-        None => None,
-    };
+    let flags = plan_surface(particles, surface, &params.adaptive);
     let rects = screen_rects(particles, &frame, range);
     stats.particles_visible = rects.par_iter().filter(|r| r[0] < r[1]).count();
     let reach = |rect| particles_reaching(&rects, rect, margin);
