@@ -258,8 +258,7 @@ impl Dataset {
 
     /// First value of a field-data array, e.g. `support_radius` or `TIME`.
     pub fn field_scalar(&self, name: &str) -> Option<f64> {
-        self.field_array(name)
-            .and_then(|a| a.values.first().copied())
+        first_value(&self.field_data, name)
     }
 
     /// Axis-aligned bounds of the finite points, `None` if there are none.
@@ -280,6 +279,14 @@ impl Dataset {
         }
         any.then_some((lo, hi))
     }
+}
+
+/// The first value of the array called `name` among `arrays`.
+fn first_value(arrays: &[DataArray], name: &str) -> Option<f64> {
+    arrays
+        .iter()
+        .find(|a| a.name == name)
+        .and_then(|a| a.values.first().copied())
 }
 
 /// Reads one particle file, choosing the format by extension (`.vtu`, `.vtp`, `.vtk`, and
@@ -348,6 +355,11 @@ impl LazyDataset {
             LazyDataset::Xml(x) => x.field_data(),
             LazyDataset::Read(d) => &d.field_data,
         }
+    }
+
+    /// First value of a field-data array (as [`Dataset::field_scalar`]).
+    pub fn field_scalar(&self, name: &str) -> Option<f64> {
+        first_value(self.field_data(), name)
     }
 
     /// The point arrays a read would keep, as (name, components), decoded or not.

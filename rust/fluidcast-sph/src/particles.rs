@@ -263,10 +263,7 @@ impl ParticleSource for LazyDataset {
         LazyDataset::num_points(self)
     }
     fn field_scalar(&self, name: &str) -> Option<f64> {
-        self.field_data()
-            .iter()
-            .find(|a| a.name == name)
-            .and_then(|a| a.values.first().copied())
+        LazyDataset::field_scalar(self, name)
     }
     fn arrays(&self) -> Vec<(String, usize)> {
         self.point_arrays()
