@@ -1,24 +1,15 @@
 //! The adaptive renderer's options from the command line, and `fluidcast bench`.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
-use std::path::PathBuf;
+mod common;
+
 use std::process::Command;
 
-fn sample() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu")
-}
+use common::sample;
 
+/// `fluidcast ARGS`: (success, stdout, stderr).
 fn run(args: &[&str]) -> (bool, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(!err.contains("panicked"), "panic: {err}");
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stdout).to_string(),
-        err,
-    )
+    let (code, out, err) = common::run(args);
+    (code == Some(0), out, err)
 }
 
 /// Renders the sample at 64x48 with `extra` options: (success, stderr).

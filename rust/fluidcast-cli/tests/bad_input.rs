@@ -1,5 +1,7 @@
 //! Bad input gets a clear error naming the file and the problem, never a panic.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -9,14 +11,10 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// `fluidcast ARGS`: (success, stderr).
 fn run(args: &[&str]) -> (bool, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(!err.contains("panicked"), "panic: {err}");
-    (o.status.success(), err)
+    let (code, _, err) = common::run(args);
+    (code == Some(0), err)
 }
 
 fn render_err(input: &Path, extra: &[&str]) -> String {
@@ -320,8 +318,7 @@ fn lattice(n: usize, extra: &[[f64; 3]]) -> String {
 
 #[test]
 fn huge_images_are_refused_before_allocating() {
-    let sample =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let sample = common::sample();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let (o, s) = (out.to_str().unwrap(), sample.to_str().unwrap());
@@ -480,8 +477,7 @@ fn values_beyond_single_precision_are_refused() {
 
 #[test]
 fn output_and_option_mistakes_are_errors() {
-    let sample =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let sample = common::sample();
     let err = render_err(&sample, &["--background", "nan,0,0"]);
     assert!(err.contains("--background 'nan,0,0'"), "{err}");
     let err = render_err(&sample, &["--background", "2,2,2"]);
@@ -523,8 +519,7 @@ fn output_and_option_mistakes_are_errors() {
 
 #[test]
 fn closed_pipes_and_full_disks() {
-    let sample =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let sample = common::sample();
     let s = sample.to_str().unwrap();
     // The reader goes away: a quiet, successful end, as `cat F | true` has.
     let o = Command::new("sh")
@@ -559,8 +554,7 @@ fn closed_pipes_and_full_disks() {
 /// problem, exit code 1, no panic.
 #[test]
 fn bad_camera_and_tf_files_and_tool_inputs() {
-    let sample =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../examples/data/sample_column.vtu");
+    let sample = common::sample();
     let d = tempfile::tempdir().unwrap();
     let cam = |name: &str, json: &str| {
         let p = write(d.path(), name, json.as_bytes());

@@ -2,19 +2,17 @@
 //! EXR's Z channel is where the probed colour field first crosses the iso value along that
 //! pixel's ray.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
 use fluidcast_image::Image;
 use fluidcast_view::Camera;
 
+/// `fluidcast ARGS`, which must succeed: its stderr.
 fn fluidcast(args: &[&str]) -> String {
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-        .args(args)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    assert!(o.status.success(), "fluidcast {args:?}: {err}");
+    let (code, _, err) = common::run(args);
+    assert_eq!(code, Some(0), "fluidcast {args:?}: {err}");
     err
 }
 
@@ -148,10 +146,8 @@ fn surface_depth_is_the_first_crossing_of_the_probed_field() {
 /// iso options are errors before any file is read.
 #[test]
 fn iso_options_are_checked_and_refused_where_not_drawn() {
-    let sample = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/data/sample_column.vtu"
-    );
+    let sample = common::sample();
+    let sample = sample.to_str().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let run = |extra: &[&str]| {
@@ -164,14 +160,8 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
             out.to_str().unwrap(),
         ];
         args.extend_from_slice(extra);
-        let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-            .args(&args)
-            .output()
-            .unwrap();
-        (
-            o.status.code(),
-            String::from_utf8_lossy(&o.stderr).to_string(),
-        )
+        let (code, _, err) = common::run(&args);
+        (code, err)
     };
     let cases: [(&[&str], &str); 8] = [
         (

@@ -1,17 +1,15 @@
 //! `fluidcast render --mode perspective-grid` from the command line.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
-use std::process::Command;
+mod common;
 
 use fluidcast_image::Image;
 
+/// Renders the sample at 200x150 with `extra`: (exit code, stderr).
 fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
-    let sample = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../examples/data/sample_column.vtu"
-    );
+    let sample = common::sample();
     let mut args = vec![
         "render",
-        sample,
+        sample.to_str().unwrap(),
         "--array",
         "velocity",
         "--size",
@@ -21,14 +19,8 @@ fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
     ];
     args.extend_from_slice(extra);
     args.extend_from_slice(&["-o", out.to_str().unwrap()]);
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-        .args(&args)
-        .output()
-        .unwrap();
-    (
-        o.status.code(),
-        String::from_utf8_lossy(&o.stderr).to_string(),
-    )
+    let (code, _, err) = common::run(&args);
+    (code, err)
 }
 
 /// One grid column per pixel gives the reference's image (single precision grid), with and

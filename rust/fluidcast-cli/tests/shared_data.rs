@@ -1,8 +1,9 @@
 //! Every file in ../shared/data renders; the encodings of DoubleDamBreak frame 0011 give
 //! identical images.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 /// `../shared/data/` beside the repository (see `fluidcast_testkit::shared_data`).
 fn shared(rel: &str) -> Option<PathBuf> {
@@ -10,25 +11,11 @@ fn shared(rel: &str) -> Option<PathBuf> {
 }
 
 fn render(input: &Path, out: &Path, extra: &[&str]) {
-    let mut args = vec![
-        "render".to_string(),
-        input.display().to_string(),
-        "-o".into(),
-        out.display().to_string(),
-        "--size".into(),
-        "96x72".into(),
-    ];
-    args.extend(extra.iter().map(|s| s.to_string()));
-    let o = Command::new(env!("CARGO_BIN_EXE_fluidcast"))
-        .args(&args)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "{}: {}",
-        input.display(),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let (i, o) = (input.to_str().unwrap(), out.to_str().unwrap());
+    let mut args = vec!["render", i, "-o", o, "--size", "96x72"];
+    args.extend_from_slice(extra);
+    let (code, _, err) = common::run(&args);
+    assert_eq!(code, Some(0), "{}: {err}", input.display());
 }
 
 #[test]
