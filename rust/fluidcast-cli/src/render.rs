@@ -130,10 +130,10 @@ pub fn render_frame(
     renderer: &Renderer,
 ) -> Result<(Image, RenderStats)> {
     if let Some(max) = tiles {
-        // The perspective grid interpolates between columns of `cell` pixels and takes
-        // central differences across them: a tile also needs its neighbours' particles.
+        // The perspective grid's pixels read neighbouring columns: a tile also needs the
+        // particles around it.
         let margin = if mode == Mode::PerspectiveGrid {
-            3 * cell
+            fluidcast_render::tile_margin(cell)
         } else {
             0
         };

@@ -40,7 +40,7 @@ pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDept
 pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
-pub use perspective::{render_perspective_grid, MAX_CELL, SLAB};
+pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 pub use tiles::{

@@ -279,6 +279,13 @@ pub fn render_perspective_grid(
 /// its two nearest columns each way, and central differences across them (surface normals).
 const READ_REACH: u32 = 3;
 
+/// Pixels around a screen tile whose particles the perspective grid with `cell` pixels per
+/// column needs to render the tile's pixels ([`crate::render_in_tiles`]'s margin): the
+/// columns its pixels read, [`READ_REACH`] of them.
+pub fn tile_margin(cell: u32) -> u32 {
+    READ_REACH * cell
+}
+
 /// Occlusion culling: per tile of `TILE × TILE` columns, whether every pixel that may read
 /// one of its columns (the tile grown by [`READ_REACH`] columns) has stopped. Such a tile
 /// need not be resampled: no pixel that still marches reads it. A two-level opacity buffer

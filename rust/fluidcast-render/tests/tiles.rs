@@ -8,8 +8,8 @@ use std::sync::Arc;
 use common::{cloud, cloud_view};
 use fluidcast_image::Image;
 use fluidcast_render::{
-    render_adaptive, render_in_tiles, render_perspective_grid, render_reference, IsoField,
-    PlanParams, RenderError, RenderParams, RenderStats, Surfaces,
+    render_adaptive, render_in_tiles, render_perspective_grid, render_reference, tile_margin,
+    IsoField, PlanParams, RenderError, RenderParams, RenderStats, Surfaces,
 };
 use fluidcast_sph::{FieldKind, Particles};
 use fluidcast_view::{Camera, TransferFunction};
@@ -96,7 +96,7 @@ fn tiles_give_the_image_of_one_render() {
         for r in renderers {
             let (whole, _) = render(r, &p, None, &cam, &tf, &prm).unwrap();
             let margin = match r {
-                Renderer::PerspectiveGrid(cell) => 3 * cell,
+                Renderer::PerspectiveGrid(cell) => tile_margin(cell),
                 _ => 0,
             };
             for tiles in [2, 5, 9] {
