@@ -160,8 +160,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut surface_ms: Vec<f64> = Vec::new();
     for &fi in &frames {
         let file = &all[fi].1;
-        let ds = input.read_with(file, &Arrays::Named(spec.arrays()))?;
-        let particles = Particles::from_dataset(&ds, &spec)?;
+        let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
+        let particles = Particles::from_source(&ds, &spec)?;
         particles_n = particles_n.max(particles.len());
         // View-independent: once per time step, reused by every view (as the VTK mapper does).
         let t = Instant::now();
