@@ -9,7 +9,7 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
-use crate::span::{BundleRays, Scatter, SpanSums, LANES};
+use crate::span::{BundleRays, Scatter, SpanDepths, SpanSums, LANES};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 /// Neighbour-count ratio below which a particle counts as a surface particle (see
@@ -170,6 +170,7 @@ pub fn render_adaptive(
 /// which rays still take samples.
 struct BundleScratch {
     sums: SpanSums,
+    zs: SpanDepths,
     local: Vec<ViewParticle>,
     live: Vec<bool>,
 }
@@ -180,6 +181,7 @@ impl BundleScratch {
         BundleScratch {
             // A span samples at most 64 depths (the plan caps spans at 4 cells of 16).
             sums: SpanSums::new(slots, depth_samples.max(64)),
+            zs: SpanDepths::default(),
             local: Vec::new(),
             live: vec![false; slots],
         }
@@ -256,7 +258,6 @@ fn cast_bundle(
     let mut comps: Vec<Compositor> = pixels
         .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
-    let mut zs = [0.0f64; 65];
     for span in plan.bundle_spans(b) {
         if comps.iter().all(|c| c.done) {
             break;
@@ -273,11 +274,15 @@ fn cast_bundle(
         }
         let step = 1usize << span.level;
         let n = span.count as usize * dz / step;
-        for (m, z) in zs[..=n].iter_mut().enumerate() {
-            *z = depths.z[k0 + m * step];
-        }
         let cells = &grid.cells[first..first + span.count as usize];
-        let BundleScratch { sums, local, live } = scratch;
+        let BundleScratch {
+            sums,
+            zs,
+            local,
+            live,
+        } = scratch;
+        // The span's n samples and the end of the last one's step.
+        zs.set((0..=n).map(|m| depths.z[k0 + m * step]));
         local.clear();
         local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
         for (r, c) in comps.iter().enumerate() {
@@ -288,7 +293,7 @@ fn cast_bundle(
             rays: &lanes,
             footprint: |p: &ViewParticle| lines.footprint(p),
             particles: local,
-            zs: &zs[..n],
+            zs,
             live,
             kernel: params.kernel,
             field: params.field,
@@ -303,7 +308,7 @@ fn cast_bundle(
                     c.sample(
                         tf,
                         q,
-                        (zs[m], zs[m + 1]),
+                        (zs.z()[m], zs.z()[m + 1]),
                         ray.dlen,
                         params.min_transmittance,
                     );

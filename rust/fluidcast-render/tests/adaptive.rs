@@ -1,6 +1,7 @@
 //! The adaptive grid renderer against the reference renderer and against its own bounds.
 //!
-//! * `--error-tolerance off` samples the reference's positions with its arithmetic: identical images.
+//! * `--error-tolerance off` samples the reference's positions with its arithmetic (in single
+//!   precision): the same images to f32 rounding.
 //! * Strict mode: no pixel differs from the full-rate grid rendering by more than E_I, over
 //!   synthetic scenes (the paper's radial concentration with a high-frequency transfer
 //!   function) and every shared dataset, on an orbit of 8 views.
@@ -196,9 +197,10 @@ fn off_equals_reference_at_the_same_samples() {
             "{parallel} {field:?}: scene too empty: {covered} pixels"
         );
         let m = max_abs(&r, &a.image);
-        // The grid renderer's lane loops (span.rs) do the reference's arithmetic in its order,
-        // so the images are identical, not merely close.
-        assert!(m == 0.0, "{parallel} {field:?} {kernel:?}: max abs {m}");
+        // The grid renderer's lane loops (span.rs) do the reference's arithmetic in its order
+        // in single precision (the reference: double), so the images agree to f32 rounding:
+        // a few ulps of the colour, far below an 8-bit step (3.9e-3).
+        assert!(m <= 2e-6, "{parallel} {field:?} {kernel:?}: max abs {m}");
         let dz = compare(&r, &a.image, 1.0).unwrap().0.depth_max_abs;
         assert!(
             dz == 0.0,

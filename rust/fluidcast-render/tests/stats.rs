@@ -53,7 +53,12 @@ fn renderers_report_the_same_samples_and_their_stages() {
     let (ri, rs) = render_reference(&p, &cam, &tf, &prm).unwrap();
     let a = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
     let (oi, os) = render_object_space(&p, &cam, &tf, &prm).unwrap();
-    assert_eq!(a.image.rgba, ri.rgba);
+    // The same image to single-precision rounding (see adaptive.rs).
+    let diff = fluidcast_image::compare(&a.image, &ri, 1.0)
+        .unwrap()
+        .0
+        .max_abs;
+    assert!(diff <= 2e-6, "{diff}");
     assert!(oi.rgba.iter().any(|c| c[3] > 0.05));
 
     check_stages("reference", &rs, &["bin", "raycast", "total"]);
