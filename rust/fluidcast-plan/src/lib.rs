@@ -435,11 +435,39 @@ impl Parts {
     }
 }
 
-/// Bounds of one cell for levels 0..=max_level (Sec. 4.1–4.2). `parts` are the bundle's
+/// A cell's value bounds per depth sample (Sec. 4.1–4.2), from which [`CellSamples::level`]
+/// composites the cell's bound at a sampling level, and whether some sample that a particle
+/// reaches may still be empty for some ray (`gappy`, a coverage gap).
+struct CellSamples {
+    vb: [ValueBound; 64],
+    /// Each sample's step length along the bundle's shortest and longest ray (world units).
+    ds: [[f64; 2]; 64],
+    dz: usize,
+    gappy: bool,
+}
+
+impl CellSamples {
+    /// The cell's bound at level `l`: sample k is drawn with the value of sample
+    /// ⌊k/2^l⌋·2^l over its own step, so the bound of step k is the union of both samples'
+    /// bounds.
+    fn level(&self, l: usize) -> Bound {
+        let step = 1usize << l;
+        let mut acc = Bound::EMPTY;
+        for k in 0..self.dz {
+            let u = if k % step == 0 {
+                self.vb[k]
+            } else {
+                self.vb[k / step * step].union(&self.vb[k])
+            };
+            acc = acc.over(&u.step(self.ds[k]));
+        }
+        acc
+    }
+}
+
+/// The value bounds of one cell's samples (see [`CellSamples`]). `parts` are the bundle's
 /// sub-bundles for the coverage test; `stop` the nearest depth where opaque geometry stops a
-/// ray of the bundle. Returns true when some sample that a particle reaches may still be
-/// empty for some ray (a coverage gap).
-#[allow(clippy::too_many_arguments)]
+/// ray of the bundle.
 fn cell_bounds(
     grid: &PerspectiveGrid,
     bundle: &Bundle,
@@ -448,8 +476,7 @@ fn cell_bounds(
     tfb: &TfBounds,
     params: &FieldParams,
     stop: f64,
-    out: &mut [Bound; LEVELS],
-) -> bool {
+) -> CellSamples {
     let depths = grid.depths.as_ref().expect("cells exist only with depths");
     let dz = grid.params.depth_samples as usize;
     let k0 = cell.z as usize * dz;
@@ -543,29 +570,19 @@ fn cell_bounds(
             k_hi: tf.extinction(r.alpha_hi),
         };
     }
-    // Level l: sample k is drawn with the value of sample ⌊k/2^l⌋·2^l over its own step, so
-    // the bound of step k is the union of both samples' bounds.
-    for (l, o) in out
-        .iter_mut()
-        .enumerate()
-        .take(grid.params.max_level() as usize + 1)
-    {
-        let step = 1usize << l;
-        let mut acc = Bound::EMPTY;
-        for k in 0..dz {
-            let u = if k % step == 0 {
-                vb[k]
-            } else {
-                vb[k / step * step].union(&vb[k])
-            };
-            let ds = depths.z[k0 + k + 1] - depths.z[k0 + k];
-            let s = u.step([ds * bundle.dlen[0], ds * bundle.dlen[1]]);
-            acc = acc.over(&s);
-        }
-        *o = acc;
+    let mut ds = [[0.0; 2]; 64];
+    for (k, d) in ds.iter_mut().enumerate().take(dz) {
+        let step = depths.z[k0 + k + 1] - depths.z[k0 + k];
+        *d = [step * bundle.dlen[0], step * bundle.dlen[1]];
     }
-    // A sample left open is one that a particle reaches and some sub-bundle's rays may miss.
-    open != 0
+    CellSamples {
+        vb,
+        ds,
+        dz,
+        // A sample left open is one that a particle reaches and some sub-bundle's rays may
+        // miss.
+        gappy: open != 0,
+    }
 }
 
 /// Coverage of `p` at the open samples of `r` (Sec. 4.2, see [`Parts`]): bits of the
@@ -660,28 +677,9 @@ fn plan_bundle(
     let mut lmax = vec![0usize; n];
     let mut sp_ok = vec![params.superpixels; n];
     for (c, cell) in cells.iter().enumerate() {
-        let gappy = cell_bounds(
-            grid,
-            &bundle,
-            &parts,
-            cell,
-            tfb,
-            field,
-            stop,
-            &mut bounds[c],
-        );
-        let b0 = bounds[c][0];
-        for l in 0..=maxl {
-            let bl = bounds[c][l];
-            let mut r = bl;
-            for ch in 0..4 {
-                // Sec. 5.1: lower bounds move up by E_relax × the level-0 width.
-                let lo0 = b0.hi[ch] - (1.0 - params.relax) * (b0.hi[ch] - b0.lo[ch]);
-                // max/min, not clamp: a NaN (from degenerate depths) becomes 0, never a panic.
-                r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).max(0.0).min(r.hi[ch]);
-            }
-            relaxed[c][l] = r;
-        }
+        let samples = cell_bounds(grid, &bundle, &parts, cell, tfb, field, stop);
+        let gappy = samples.gappy;
+        bounds[c][0] = samples.level(0);
         let is_surface = params.uses_surface_cells()
             && gappy
             && surface.is_some_and(|s| {
@@ -693,9 +691,28 @@ fn plan_bundle(
             stats.surface_cells += 1;
             sp_ok[c] = false;
         } else {
-            while lmax[c] < maxl && bounds[c][lmax[c] + 1].width() < tol {
+            // The level rises while its strict bound stays below E_I (Sec. 4.2); only the
+            // levels up to there and the first above are composited.
+            while lmax[c] < maxl {
+                let next = samples.level(lmax[c] + 1);
+                if next.width() >= tol {
+                    break;
+                }
                 lmax[c] += 1;
+                bounds[c][lmax[c]] = next;
             }
+        }
+        let b0 = bounds[c][0];
+        for l in 0..=lmax[c] {
+            let bl = bounds[c][l];
+            let mut r = bl;
+            for ch in 0..4 {
+                // Sec. 5.1: lower bounds move up by E_relax × the level-0 width.
+                let lo0 = b0.hi[ch] - (1.0 - params.relax) * (b0.hi[ch] - b0.lo[ch]);
+                // max/min, not clamp: a NaN (from degenerate depths) becomes 0, never a panic.
+                r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).max(0.0).min(r.hi[ch]);
+            }
+            relaxed[c][l] = r;
         }
     }
     // Front composites of the relaxed full-rate bounds, F_c = cells 0..c.
@@ -938,17 +955,9 @@ mod tests {
                 let split = bundle.split(&grid.frame, COVER_SPLIT);
                 let parts = Parts::new(&split);
                 for cell in grid.bundle_cells(b) {
-                    let mut out = [Bound::EMPTY; LEVELS];
-                    let gappy = cell_bounds(
-                        &grid,
-                        &bundle,
-                        &parts,
-                        cell,
-                        &tfb,
-                        &field,
-                        f64::INFINITY,
-                        &mut out,
-                    );
+                    let gappy =
+                        cell_bounds(&grid, &bundle, &parts, cell, &tfb, &field, f64::INFINITY)
+                            .gappy;
                     let k0 = cell.z as usize * dz;
                     let refs = &grid.refs[cell.start as usize..cell.end as usize];
                     let want = (k0..k0 + dz).any(|k| {
