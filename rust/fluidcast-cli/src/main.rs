@@ -24,6 +24,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use fluidcast_sph::ParticleError;
 
 #[derive(Parser)]
 #[command(
@@ -141,6 +142,26 @@ fn main() {
             return; // the reader went away (`fluidcast info F | head`): nothing to report
         }
         eprintln!("error: {}", one_line(&e));
+        if let Some(h) = hint(&e) {
+            eprintln!("hint: {h}");
+        }
         std::process::exit(1);
     }
+}
+
+/// What a user can do about an error the data caused, where the CLI has an option for it.
+fn hint(e: &anyhow::Error) -> Option<&'static str> {
+    e.chain()
+        .find_map(|c| {
+            match c.downcast_ref::<ParticleError>() {
+        // A zero density (SPlisHSPlasH writes one for particles emitted in that frame): the
+        // Shepard-normalised field does not depend on a uniform volume.
+        Some(ParticleError::BadVolume { from, .. }) if from.contains(" / ") => Some(
+            "volumes are mass / density; --uniform-volume gives every particle the same volume \
+             (the default csph field is then the kernel-weighted mean of the values), \
+             --volume-array NAME takes them from an array",
+        ),
+        _ => None,
+    }
+        })
 }

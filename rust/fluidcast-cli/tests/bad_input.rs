@@ -150,6 +150,54 @@ fn bad_radii() {
     assert!(err.contains("--support-radius"), "{err}");
 }
 
+/// Volumes are mass / density: a zero density (SPlisHSPlasH writes one for a particle emitted
+/// in that frame) or a zero volume is an error naming the particle and the values it came
+/// from, with what to do; equal volumes then render.
+#[test]
+fn zero_densities_and_volumes_are_explained() {
+    let dir = tempfile::tempdir().unwrap();
+    let arrays = r#"<DataArray type="Float32" Name="mass" format="ascii">0.5 0.5 0.5</DataArray>
+<DataArray type="Float32" Name="density" format="ascii">1000 1000 0</DataArray>"#;
+    let p = write(
+        dir.path(),
+        "emitted.vtu",
+        ascii_vtu("0 0 0 0.1 0 0 0 0.1 0", 3, arrays).as_bytes(),
+    );
+    let err = render_err(&p, &["--support-radius", "0.2"]);
+    assert!(
+        err.contains("emitted.vtu")
+            && err.contains("volume of particle 2 is inf (mass 0.5 / density 0;")
+            && err.contains("hint:")
+            && err.contains("--uniform-volume"),
+        "{err}"
+    );
+    let out = dir.path().join("o.png");
+    let (ok, err) = run(&[
+        "render",
+        p.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "32x24",
+        "--support-radius",
+        "0.2",
+        "--uniform-volume",
+    ]);
+    assert!(ok && out.exists(), "{err}");
+    let arrays =
+        r#"<DataArray type="Float32" Name="volume" format="ascii">1e-3 0 1e-3</DataArray>"#;
+    let p = write(
+        dir.path(),
+        "zero_volume.vtu",
+        ascii_vtu("0 0 0 0.1 0 0 0 0.1 0", 3, arrays).as_bytes(),
+    );
+    let err = render_err(&p, &["--support-radius", "0.2"]);
+    assert!(
+        err.contains("volume of particle 1 is 0 (array 'volume';") && !err.contains("hint:"),
+        "{err}"
+    );
+}
+
 #[test]
 fn absurd_image_size() {
     for size in ["100000x100000", "0x10", "12", "axb"] {

@@ -180,11 +180,14 @@ pub enum ParticleError {
         index: usize,
         value: f64,
     },
-    #[error("{file}: volume of particle {index} is {value} (must be finite and > 0)")]
+    #[error("{file}: volume of particle {index} is {value} ({from}; must be finite and > 0)")]
     BadVolume {
         file: PathBuf,
         index: usize,
         value: f64,
+        /// Where the volume came from, with the values at fault (e.g. `mass 0.0156 /
+        /// density 0`: a particle whose density the code has not computed yet).
+        from: String,
     },
     #[error("{file}: {message}")]
     Other { file: PathBuf, message: String },
@@ -571,6 +574,17 @@ impl Volume<'_> {
             Volume::Uniform(v) => *v,
         }
     }
+
+    /// Where particle `i`'s volume comes from, with the values read (for errors).
+    fn describe(&self, i: usize) -> String {
+        match self {
+            Volume::Ratio(m, d) => {
+                format!("{} {} / {} {}", m.name, m.values[i], d.name, d.values[i])
+            }
+            Volume::Array(v) => format!("array '{}'", v.name),
+            Volume::Uniform(_) => "uniform volume".into(),
+        }
+    }
 }
 
 /// What the volume rule of `spec` needs: (mass and density, volume array) present.
@@ -674,6 +688,7 @@ impl Particles {
                         file: file.clone(),
                         index: i,
                         value: v,
+                        from: volume.describe(i),
                     });
                 }
                 single_precision(&file, i, true, &[("volume", v)])
