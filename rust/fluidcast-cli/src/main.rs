@@ -151,9 +151,8 @@ fn main() {
 
 /// What a user can do about an error the data caused, where the CLI has an option for it.
 fn hint(e: &anyhow::Error) -> Option<&'static str> {
-    e.chain()
-        .find_map(|c| {
-            match c.downcast_ref::<ParticleError>() {
+    e.chain().find_map(|c| {
+        match c.downcast_ref::<ParticleError>() {
         // A zero density (SPlisHSPlasH writes one for particles emitted in that frame): the
         // Shepard-normalised field does not depend on a uniform volume.
         Some(ParticleError::BadVolume { from, .. }) if from.contains(" / ") => Some(
@@ -163,5 +162,5 @@ fn hint(e: &anyhow::Error) -> Option<&'static str> {
         ),
         _ => None,
     }
-        })
+    })
 }

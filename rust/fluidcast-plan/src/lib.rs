@@ -230,11 +230,18 @@ impl SamplingPlan {
             }
         }
         let tfb = TfBounds::new(tf);
+        let reach = sample_reach(grid);
+        let view = View {
+            grid,
+            tfb: &tfb,
+            field,
+            reach: &reach,
+        };
         let bundles: Vec<BundlePlan> = (0..grid.bundle_count())
             .into_par_iter()
             .map(|b| {
                 let stop = stops.map_or(f64::INFINITY, |s| s[b]);
-                plan_bundle(grid, b, &tfb, surface, stop, params, field)
+                plan_bundle(&view, b, surface, stop, params)
             })
             .collect();
         let mut plan = SamplingPlan {
@@ -465,18 +472,46 @@ impl CellSamples {
     }
 }
 
+/// What the analysis of every bundle of a view shares: the grid, the transfer function's
+/// bounds, the field, and each particle's sample range ([`sample_reach`]).
+struct View<'a> {
+    grid: &'a PerspectiveGrid,
+    tfb: &'a TfBounds,
+    field: &'a FieldParams,
+    reach: &'a [(u32, u32)],
+}
+
+/// Each particle's depth samples: the half-open range of indices of the view's sample depths
+/// inside its support's depth extent [c.z − H, c.z + H] (as [`fluidcast_grid::within`]
+/// counts them), found once per view instead of once in every cell that references it.
+fn sample_reach(grid: &PerspectiveGrid) -> Vec<(u32, u32)> {
+    let Some(depths) = grid.depths.as_ref() else {
+        return Vec::new();
+    };
+    let z = &depths.z;
+    grid.particles
+        .par_iter()
+        .map(|p| {
+            let lo = z.partition_point(|&d| d < p.c[2] - p.h());
+            let hi = z.partition_point(|&d| d <= p.c[2] + p.h());
+            (lo as u32, hi.max(lo) as u32)
+        })
+        .collect()
+}
+
+/// A particle's sample range (see [`sample_reach`]) within the cell whose `dz` samples start
+/// at index `k0`, counted from `k0`: what `within` finds among the cell's depths.
+#[inline]
+fn cell_range((lo, hi): (u32, u32), k0: usize, dz: usize) -> std::ops::Range<usize> {
+    let clamp = |i: u32| (i as usize).clamp(k0, k0 + dz) - k0;
+    clamp(lo)..clamp(hi)
+}
+
 /// The value bounds of one cell's samples (see [`CellSamples`]). `parts` are the bundle's
 /// sub-bundles for the coverage test; `stop` the nearest depth where opaque geometry stops a
 /// ray of the bundle.
-fn cell_bounds(
-    grid: &PerspectiveGrid,
-    bundle: &Bundle,
-    parts: &Parts,
-    cell: &Cell,
-    tfb: &TfBounds,
-    params: &FieldParams,
-    stop: f64,
-) -> CellSamples {
+fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f64) -> CellSamples {
+    let (grid, tfb, params) = (view.grid, view.tfb, view.field);
     let depths = grid.depths.as_ref().expect("cells exist only with depths");
     let dz = grid.params.depth_samples as usize;
     let k0 = cell.z as usize * dz;
@@ -491,11 +526,11 @@ fn cell_bounds(
     let full = parts.all;
     let mut cover = [0u64; 64];
     for &j in &grid.refs[cell.start as usize..cell.end as usize] {
-        let p = &grid.particles[j as usize];
-        let r = fluidcast_grid::within(zs, p.c[2] - p.h(), p.c[2] + p.h());
+        let r = cell_range(view.reach[j as usize], k0, dz);
         if r.is_empty() {
             continue;
         }
+        let p = &grid.particles[j as usize];
         for k in r.clone() {
             any[k] = true;
             qlo[k] = qlo[k].min(p.a());
@@ -536,12 +571,12 @@ fn cell_bounds(
             if open == 0 {
                 break;
             }
-            let p = &grid.particles[j as usize];
-            if central(p) != pass {
+            let r = cell_range(view.reach[j as usize], k0, dz);
+            if r.is_empty() {
                 continue;
             }
-            let r = fluidcast_grid::within(zs, p.c[2] - p.h(), p.c[2] + p.h());
-            if r.is_empty() {
+            let p = &grid.particles[j as usize];
+            if central(p) != pass {
                 continue;
             }
             cover_samples(bundle, parts, p, zs, r, &mut cover, &mut open);
@@ -627,14 +662,13 @@ enum Choice {
 }
 
 fn plan_bundle(
-    grid: &PerspectiveGrid,
+    view: &View,
     b: usize,
-    tfb: &TfBounds,
     surface: Option<&[bool]>,
     stop: f64,
     params: &PlanParams,
-    field: &FieldParams,
 ) -> BundlePlan {
+    let (grid, field) = (view.grid, view.field);
     let cells = grid.bundle_cells(b);
     let first = grid.bundle_first_cell(b) as u32;
     let n = cells.len();
@@ -677,7 +711,7 @@ fn plan_bundle(
     let mut lmax = vec![0usize; n];
     let mut sp_ok = vec![params.superpixels; n];
     for (c, cell) in cells.iter().enumerate() {
-        let samples = cell_bounds(grid, &bundle, &parts, cell, tfb, field, stop);
+        let samples = cell_bounds(view, &bundle, &parts, cell, stop);
         let gappy = samples.gappy;
         bounds[c][0] = samples.level(0);
         let is_surface = params.uses_surface_cells()
@@ -949,15 +983,20 @@ mod tests {
             let grid = PerspectiveGrid::build(&p, &frame, Default::default(), 1.0).unwrap();
             let depths = grid.depths.as_ref().unwrap();
             let dz = grid.params.depth_samples as usize;
+            let reach = sample_reach(&grid);
+            let view = View {
+                grid: &grid,
+                tfb: &tfb,
+                field: &field,
+                reach: &reach,
+            };
             let (mut gaps, mut cells) = (0, 0);
             for b in 0..grid.bundle_count() {
                 let bundle = grid.bundle(b);
                 let split = bundle.split(&grid.frame, COVER_SPLIT);
                 let parts = Parts::new(&split);
                 for cell in grid.bundle_cells(b) {
-                    let gappy =
-                        cell_bounds(&grid, &bundle, &parts, cell, &tfb, &field, f64::INFINITY)
-                            .gappy;
+                    let gappy = cell_bounds(&view, &bundle, &parts, cell, f64::INFINITY).gappy;
                     let k0 = cell.z as usize * dz;
                     let refs = &grid.refs[cell.start as usize..cell.end as usize];
                     let want = (k0..k0 + dz).any(|k| {
