@@ -65,8 +65,10 @@ fn modes_agree_within_their_promises() {
     );
     render(&p("default.png"), &["--aovs"]);
     render(&p("default.exr"), &[]);
-    // The EXRs keep depth: the reference and full rate put it on the same sample plane.
-    assert_eq!(compare(&p("ref.exr"), &p("off.exr")), (0.0, 0.0));
+    // The EXRs keep depth: the reference and full rate put it on the same sample plane; the
+    // colours agree to single-precision rounding (full rate sums in f32).
+    let (colour, depth) = compare(&p("ref.exr"), &p("off.exr"));
+    assert!(colour <= 2e-6 && depth == 0.0, "{colour} {depth}");
     assert!(compare(&p("off.exr"), &p("strict.exr")).0 <= 0.004);
     assert!(p("default.plan.png").exists() && p("default.error.png").exists());
     let img = fluidcast_image_channels(&p("default.exr"));
