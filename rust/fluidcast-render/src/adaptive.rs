@@ -219,13 +219,18 @@ impl BundleLines {
             let (lo, hi) = (c - p.h(), c + p.h());
             let slack = 1e-9 * (lo.abs().max(hi.abs()) + p.h());
             // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
-            let hits = |&(o, d): &(f64, f64)| {
+            // Every line is tested, without branches (a bundle has at most 64 per side): bit k
+            // set where line k meets the extent; the range runs from the first to the last.
+            let mut hits = 0u64;
+            for (k, &(o, d)) in lines.iter().enumerate() {
                 let (a, b) = (o + z0.max(0.0) * d, o + z1.max(0.0) * d);
-                a.min(b) <= hi + slack && a.max(b) >= lo - slack
-            };
-            let first = lines.iter().position(hits).unwrap_or(lines.len());
-            let end = lines.iter().rposition(hits).map_or(first, |k| k + 1);
-            first..end.max(first)
+                let hit = (a.min(b) <= hi + slack) & (a.max(b) >= lo - slack);
+                hits |= u64::from(hit) << k;
+            }
+            if hits == 0 {
+                return lines.len()..lines.len();
+            }
+            hits.trailing_zeros() as usize..64 - hits.leading_zeros() as usize
         };
         (reach(&self.x, p.c[0]), reach(&self.y, p.c[1]))
     }
