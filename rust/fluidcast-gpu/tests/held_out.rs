@@ -2,11 +2,13 @@
 //! (isolated droplets far above the fluid), single particles, a cell holding far more
 //! particles than a workgroup loads at once, particles across the frustum's edge, and empty
 //! bundles between full ones. Every pixel that differs by more than 1e-3 must be one of the
-//! two measured f32 effects (`common::f32_explanation`); anything else is a bug.
+//! two measured f32 effects (`fluidcast_render::precision::f32_explanation`); anything else is
+//! a bug.
 mod common;
 
-use common::{differing_pixels, f32_explanation, gpu, modes, shared_ddb, shared_pysph};
+use common::{gpu, modes, shared_ddb, shared_pysph};
 use fluidcast_gpu::{Gpu, GpuError};
+use fluidcast_render::precision::{differing_pixels, f32_explanation};
 use fluidcast_render::{plan_adaptive, render_adaptive, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_testkit::rng;

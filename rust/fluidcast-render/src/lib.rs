@@ -22,6 +22,7 @@ mod crop;
 mod object_space;
 mod overlay;
 mod perspective;
+pub mod precision;
 mod raycast;
 mod reference;
 mod span;
