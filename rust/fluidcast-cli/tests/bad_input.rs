@@ -17,7 +17,8 @@ fn run(args: &[&str]) -> (bool, String) {
     (code == Some(0), err)
 }
 
-fn render_err(input: &Path, extra: &[&str]) -> String {
+/// `fluidcast render INPUT -o o.png --size 32x24 EXTRA`: (wrote the image, stderr).
+fn render(input: &Path, extra: &[&str]) -> (bool, String) {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let mut args = vec![
@@ -30,7 +31,19 @@ fn render_err(input: &Path, extra: &[&str]) -> String {
     ];
     args.extend_from_slice(extra);
     let (ok, err) = run(&args);
+    (ok && out.exists(), err)
+}
+
+fn render_err(input: &Path, extra: &[&str]) -> String {
+    let (ok, err) = render(input, extra);
     assert!(!ok, "expected failure for {input:?} {extra:?}");
+    err
+}
+
+/// A render that must succeed: its stderr.
+fn render_ok(input: &Path, extra: &[&str]) -> String {
+    let (ok, err) = render(input, extra);
+    assert!(ok, "{input:?} {extra:?}: {err}");
     err
 }
 
@@ -156,46 +169,36 @@ fn bad_radii() {
 #[test]
 fn zero_densities_and_volumes_are_explained() {
     let dir = tempfile::tempdir().unwrap();
-    let arrays = r#"<DataArray type="Float32" Name="mass" format="ascii">0.5 0.5 0.5</DataArray>
+    let mass_density = r#"<DataArray type="Float32" Name="mass" format="ascii">0.5 0.5 0.5</DataArray>
 <DataArray type="Float32" Name="density" format="ascii">1000 1000 0</DataArray>"#;
-    let p = write(
-        dir.path(),
-        "emitted.vtu",
-        ascii_vtu("0 0 0 0.1 0 0 0 0.1 0", 3, arrays).as_bytes(),
-    );
-    let err = render_err(&p, &["--support-radius", "0.2"]);
-    assert!(
-        err.contains("emitted.vtu")
-            && err.contains("volume of particle 2 is inf (mass 0.5 / density 0;")
-            && err.contains("hint:")
-            && err.contains("--uniform-volume"),
-        "{err}"
-    );
-    let out = dir.path().join("o.png");
-    let (ok, err) = run(&[
-        "render",
-        p.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--size",
-        "32x24",
-        "--support-radius",
-        "0.2",
-        "--uniform-volume",
-    ]);
-    assert!(ok && out.exists(), "{err}");
-    let arrays =
+    let volume =
         r#"<DataArray type="Float32" Name="volume" format="ascii">1e-3 0 1e-3</DataArray>"#;
-    let p = write(
-        dir.path(),
-        "zero_volume.vtu",
-        ascii_vtu("0 0 0 0.1 0 0 0 0.1 0", 3, arrays).as_bytes(),
-    );
-    let err = render_err(&p, &["--support-radius", "0.2"]);
-    assert!(
-        err.contains("volume of particle 1 is 0 (array 'volume';") && !err.contains("hint:"),
-        "{err}"
-    );
+    for (name, arrays, says, hint) in [
+        (
+            "emitted.vtu",
+            mass_density,
+            "volume of particle 2 is inf (mass 0.5 / density 0;",
+            true,
+        ),
+        (
+            "zero_volume.vtu",
+            volume,
+            "volume of particle 1 is 0 (array 'volume';",
+            false,
+        ),
+    ] {
+        let points = "0 0 0 0.1 0 0 0 0.1 0";
+        let p = write(dir.path(), name, ascii_vtu(points, 3, arrays).as_bytes());
+        let err = render_err(&p, &["--support-radius", "0.2"]);
+        assert!(err.contains(name) && err.contains(says), "{err}");
+        assert_eq!(
+            err.contains("hint:") && err.contains("--uniform-volume"),
+            hint,
+            "{err}"
+        );
+        // The way out the hint names: equal volumes render.
+        render_ok(&p, &["--support-radius", "0.2", "--uniform-volume"]);
+    }
 }
 
 #[test]
@@ -211,20 +214,8 @@ fn nan_positions_are_skipped_with_a_count() {
     let dir = tempfile::tempdir().unwrap();
     let s = ascii_vtu("0 0 0 0.01 0 0 nan 0 0 0 inf 0 0 0.01 0", 5, "");
     let p = write(dir.path(), "nanpos.vtu", s.as_bytes());
-    let out = dir.path().join("o.png");
-    let (ok, err) = run(&[
-        "render",
-        p.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--size",
-        "16x16",
-        "--support-radius",
-        "0.02",
-    ]);
-    assert!(ok, "{err}");
+    let err = render_ok(&p, &["--support-radius", "0.02"]);
     assert!(err.contains("skipped 2 particles with NaN/Inf"), "{err}");
-    assert!(out.exists());
     let all_nan = write(
         dir.path(),
         "allnan.vtu",
