@@ -239,6 +239,7 @@ fn check_frame(
 ) -> Result<(), GpuError> {
     validate(params)?;
     fluidcast_render::refuse_surfaces(params, "the GPU backend")?;
+    fluidcast_render::check_weights(particles, params.kernel)?;
     check_supported(params, tf)?;
     params
         .adaptive

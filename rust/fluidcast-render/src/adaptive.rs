@@ -68,6 +68,7 @@ pub fn plan_adaptive(
     let t0 = Instant::now();
     validate(params)?;
     crate::refuse_surfaces(params, "the adaptive grid renderer")?;
+    crate::check_weights(particles, params.kernel)?;
     let (w, h) = (params.width, params.height);
     let frame = camera.frame(w, h)?;
     let grid = PerspectiveGrid::build_within(

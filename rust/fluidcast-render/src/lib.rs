@@ -49,8 +49,9 @@ pub use tiles::{
     VIEW_BYTES_PER_PARTICLE,
 };
 
-use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::{CameraError, Lighting};
+use rayon::prelude::*;
 
 /// Largest image side and pixel count the renderer accepts.
 pub const MAX_SIDE: u32 = 16384;
@@ -196,9 +197,49 @@ pub enum RenderError {
     VolumeLighting(&'static str),
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
+    /// A particle whose kernel weight single precision cannot sum ([`check_weights`]).
+    #[error("particle {index}: its kernel weight {what} x W(0) = {weight:e} is beyond single precision, in which the grid renderers sum: rescale the data (e.g. lengths in other units)")]
+    Weight {
+        index: usize,
+        what: &'static str,
+        weight: f64,
+    },
     /// Rendering in screen tiles within a memory budget ([`tile_particles_within`]).
     #[error("a memory limit leaving {} for rendering is too small: it needs at least {} (the image, 9 bytes a particle, and a tile of 1 MiB)", fluidcast_mem::Bytes(*.budget), fluidcast_mem::Bytes(*.needed))]
     MemoryBudget { budget: u64, needed: u64 },
+}
+
+/// Largest kernel weight the grid renderers accept: single precision's largest number over a
+/// million, so that sums of many such weights stay finite.
+pub const MAX_WEIGHT: f64 = f32::MAX as f64 / 1e6;
+
+/// Checks that every particle's largest weights at a sample, V·|q|·W(0), V·W(0) and m·W(0)
+/// (the rendered and Shepard sums, and the density's), stay below [`MAX_WEIGHT`]: the grid
+/// renderers (the CPU's span loop, the GPU) sum them in single precision, where a larger
+/// one would become infinite and the sample not a number.
+pub fn check_weights(particles: &Particles, kernel: Kernel) -> Result<(), RenderError> {
+    let weights = |j: usize| {
+        let peak = kernel.eval(0.0, f64::from(particles.radii[j]));
+        let v = f64::from(particles.volumes[j]);
+        [
+            ("V·|q|", v * f64::from(particles.values[j]).abs() * peak),
+            ("V", v * peak),
+            ("m", f64::from(particles.masses[j]) * peak),
+        ]
+    };
+    // A NaN weight is refused too.
+    let too_large = |(_, w): &(&'static str, f64)| w.is_nan() || *w > MAX_WEIGHT;
+    let bad = (0..particles.len())
+        .into_par_iter()
+        .find_first(|&j| weights(j).iter().any(too_large));
+    match bad.and_then(|j| weights(j).into_iter().find(too_large).map(|w| (j, w))) {
+        Some((index, (what, weight))) => Err(RenderError::Weight {
+            index,
+            what,
+            weight,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// A rendered frame: the image and what it took. What every backend returns (the CPU renderers

@@ -434,6 +434,41 @@ fn full_rate_differs_from_the_reference_only_by_f32_rounding() {
     }
 }
 
+/// A particle whose kernel weight single precision cannot sum (a volume of 1 with H = 1e-12:
+/// V·W(0) ≈ 2.5e36) is refused naming it and the weight, before anything is rendered; the
+/// same particle with a volume to match its size renders.
+#[test]
+fn weights_beyond_single_precision_are_refused() {
+    let mut p = cloud(60, 5);
+    let cam = camera_for(&p, 30.0, 20.0, false);
+    let tf = TransferFunction::preset("Viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    p.radii[7] = 1e-12;
+    for (field, volume, mass) in [
+        (FieldKind::Csph, 1.0, 1e-36),
+        (FieldKind::Density, 1e-36, 1.0),
+    ] {
+        p.volumes[7] = volume;
+        p.masses[7] = mass;
+        let mut prm = params(40, 30, Some(0.004));
+        prm.field = field;
+        let err = render_adaptive(&p, None, &cam, &tf, &prm).unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            matches!(err, fluidcast_render::RenderError::Weight { index: 7, .. })
+                && msg.contains("particle 7")
+                && msg.contains("beyond single precision"),
+            "{msg}"
+        );
+    }
+    p.volumes[7] = 1e-36;
+    p.masses[7] = 1e-36;
+    let a = render_adaptive(&p, None, &cam, &tf, &params(40, 30, Some(0.004))).unwrap();
+    assert!(a.image.rgba.iter().flatten().all(|c| c.is_finite()));
+}
+
 fn pixel_it(c: [f32; 4]) -> [f64; 4] {
     [c[0] as f64, c[1] as f64, c[2] as f64, 1.0 - c[3] as f64]
 }
