@@ -512,6 +512,22 @@ fn values_beyond_single_precision_are_refused() {
         err.contains("support radius of particle 0 is 1e-40"),
         "{err}"
     );
+    // A NaN value would make every sample its support reaches not a number.
+    let p = write(
+        dir.path(),
+        "nanvalue.vtu",
+        ascii_vtu(
+            "0 0 0 0.1 0 0",
+            2,
+            r#"<DataArray type="Float32" Name="q" format="ascii">1 nan</DataArray>"#,
+        )
+        .as_bytes(),
+    );
+    let err = render_err(&p, &["--array", "q", "--support-radius", "0.2"]);
+    assert!(
+        err.contains("nanvalue.vtu") && err.contains("'q' of particle 1 is NaN"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -198,7 +198,7 @@ pub enum RenderError {
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
     /// A particle whose kernel weight single precision cannot sum ([`check_weights`]).
-    #[error("particle {index}: its kernel weight {what} x W(0) = {weight:e} is beyond single precision, in which the grid renderers sum: rescale the data (e.g. lengths in other units)")]
+    #[error("particle {index}: its kernel weight {what} x W(0) = {weight:e} is not a number single precision can sum (the grid renderers sum in it): rescale the data (e.g. lengths in other units)")]
     Weight {
         index: usize,
         what: &'static str,

@@ -459,7 +459,7 @@ fn weights_beyond_single_precision_are_refused() {
         assert!(
             matches!(err, fluidcast_render::RenderError::Weight { index: 7, .. })
                 && msg.contains("particle 7")
-                && msg.contains("beyond single precision"),
+                && msg.contains("single precision can sum"),
             "{msg}"
         );
     }

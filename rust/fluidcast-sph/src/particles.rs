@@ -671,6 +671,18 @@ impl Particles {
                 let a = array(src, &q.array)?;
                 let v = component_at(&a, q, &file)?;
                 kept_values(kept, count, v, |i, a| {
+                    if a.is_nan() {
+                        // Summed into every sample its support reaches, a NaN makes them all
+                        // not a number (drawn as nothing): refused instead.
+                        return Err(ParticleError::Other {
+                            file: file.clone(),
+                            message: format!(
+                                "'{}' of particle {i} is NaN: it would blank out every sample \
+                                 its support reaches; replace or remove such values",
+                                q.array
+                            ),
+                        });
+                    }
                     single_precision(&file, i, false, &[("value", a)])
                 })?
             }
