@@ -24,6 +24,11 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
 command -v cargo-mutants > /dev/null || cargo install --locked cargo-mutants@27.1.0
 command -v cargo-nextest > /dev/null || cargo install --locked cargo-nextest
+# The tests that read ../shared/data must find it from cargo-mutants' copy of the tree (which
+# has no ../shared beside it), and must fail rather than skip without it.
+if [ -d "$root/../shared/data" ]; then
+  export FLUIDCAST_SHARED_DATA="$(cd "$root/../shared/data" && pwd)" FLUIDCAST_REQUIRE_DATA=1
+fi
 crates=("$@")
 [ ${#crates[@]} -gt 0 ] || crates=(fluidcast-plan fluidcast-render)
 for crate in "${crates[@]}"; do

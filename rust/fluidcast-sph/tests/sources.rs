@@ -14,9 +14,13 @@ fn repo(rel: &str) -> PathBuf {
         .join(rel)
 }
 
-/// `../shared/data/REL`, required when FLUIDCAST_REQUIRE_DATA=1.
+/// `../shared/data/REL` (or under FLUIDCAST_SHARED_DATA, as `fluidcast_testkit::shared_data`,
+/// which this crate's tests cannot use: the test kit depends on it), required when
+/// FLUIDCAST_REQUIRE_DATA=1.
 fn shared(rel: &str) -> Option<PathBuf> {
-    let p = repo("../shared/data").join(rel);
+    let base = std::env::var_os("FLUIDCAST_SHARED_DATA")
+        .map_or_else(|| repo("../shared/data"), PathBuf::from);
+    let p = base.join(rel);
     if p.exists() {
         return Some(p);
     }

@@ -11,13 +11,21 @@ use fluidcast_view::TransferFunction;
 /// instead of a skip.
 pub const REQUIRE_DATA_ENV: &str = "FLUIDCAST_REQUIRE_DATA";
 
-/// `../shared/data/REL` beside the repository, or `None` with a SKIP line when it is missing;
-/// with `FLUIDCAST_REQUIRE_DATA=1` a missing file panics instead, so that the test command
-/// cannot pass without the data.
+/// The shared data folder when it is not `../shared/data` beside the repository:
+/// `scripts/mutants.sh` sets it, since cargo-mutants tests a copy of the tree that has no
+/// `../shared` beside it (the tests that read the data would skip, and their mutants seem
+/// missed).
+pub const SHARED_DATA_ENV: &str = "FLUIDCAST_SHARED_DATA";
+
+/// `../shared/data/REL` beside the repository (or under `$FLUIDCAST_SHARED_DATA`), or `None`
+/// with a SKIP line when it is missing; with `FLUIDCAST_REQUIRE_DATA=1` a missing file panics
+/// instead, so that the test command cannot pass without the data.
 pub fn shared_data(rel: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data")
-        .join(rel);
+    let base = std::env::var_os(SHARED_DATA_ENV).map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+        PathBuf::from,
+    );
+    let p = base.join(rel);
     if p.exists() {
         return Some(p);
     }
