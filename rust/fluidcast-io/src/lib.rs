@@ -261,6 +261,16 @@ impl Dataset {
         first_value(&self.field_data, name)
     }
 
+    /// Every point array the file has, as (name, components): the decoded ones, then those
+    /// the read left undecoded.
+    pub fn point_arrays(&self) -> Vec<(String, usize)> {
+        self.point_data
+            .iter()
+            .map(|a| (a.name.clone(), a.num_components))
+            .chain(self.undecoded.iter().cloned())
+            .collect()
+    }
+
     /// Axis-aligned bounds of the finite points, `None` if there are none.
     pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
         let mut lo = [f64::INFINITY; 3];
@@ -362,15 +372,11 @@ impl LazyDataset {
         first_value(self.field_data(), name)
     }
 
-    /// The point arrays a read would keep, as (name, components), decoded or not.
+    /// Every point array the file has, as (name, components), decoded or not.
     pub fn point_arrays(&self) -> Vec<(String, usize)> {
         match self {
             LazyDataset::Xml(x) => x.point_arrays(),
-            LazyDataset::Read(d) => d
-                .point_data
-                .iter()
-                .map(|a| (a.name.clone(), a.num_components))
-                .collect(),
+            LazyDataset::Read(d) => d.point_arrays(),
         }
     }
 

@@ -244,11 +244,7 @@ impl ParticleSource for Dataset {
         Dataset::field_scalar(self, name)
     }
     fn arrays(&self) -> Vec<(String, usize)> {
-        self.point_data
-            .iter()
-            .map(|a| (a.name.clone(), a.num_components))
-            .chain(self.undecoded.iter().cloned())
-            .collect()
+        self.point_arrays()
     }
     fn points(&self) -> Result<Cow<'_, [f64]>, ParticleError> {
         Ok(Cow::Borrowed(bytemuck::cast_slice(&self.points)))
