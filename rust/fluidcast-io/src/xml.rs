@@ -447,7 +447,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
         if matches!(d.section, Section::Other | Section::None) {
             continue; // cells and cell data do not matter for particles
         }
-        let name = d.attrs.get("Name").map_or("", String::as_str);
+        let name = name_of(&d);
         if d.section == Section::PointData && !arrays.wants(name) {
             if d.piece == 0 {
                 undecoded.push((name.to_string(), components_of(&d)));
@@ -491,7 +491,7 @@ fn read_array(
     ctx: Ctx,
     appended: Option<&Appended>,
 ) -> Result<Option<DataArray>, ReadErrorKind> {
-    let name = d.attrs.get("Name").cloned().unwrap_or_default();
+    let name = name_of(d).to_string();
     let type_name = d.attrs.get("type").map(String::as_str).unwrap_or("");
     if type_name == "String" {
         return Ok(None); // string arrays (e.g. field-data labels) cannot be rendered
@@ -860,11 +860,7 @@ impl LazyXml {
         expected_tuples: Option<usize>,
         f: &File,
     ) -> Result<Option<DataArray>, ReadErrorKind> {
-        let Some(app) = self
-            .appended
-            .as_ref()
-            .filter(|_| d.attrs.get("format").is_some_and(|f| f == "appended"))
-        else {
+        let Some(app) = self.appended.as_ref().filter(|_| is_appended(d)) else {
             return read_array(d, expected_tuples, self.ctx, None);
         };
         let off: usize = d
@@ -971,11 +967,16 @@ fn components_of(d: &ArrayDecl) -> usize {
         .unwrap_or(1)
 }
 
+/// Whether the array's data lies in the appended section.
+fn is_appended(d: &ArrayDecl) -> bool {
+    d.attrs.get("format").is_some_and(|f| f == "appended")
+}
+
 /// Every appended array's offset, sorted.
 fn appended_offsets(decls: &[ArrayDecl]) -> Vec<usize> {
     let mut offsets: Vec<usize> = decls
         .iter()
-        .filter(|d| d.attrs.get("format").is_some_and(|f| f == "appended"))
+        .filter(|d| is_appended(d))
         .filter_map(|d| d.attrs.get("offset").and_then(|s| s.trim().parse().ok()))
         .collect();
     offsets.sort_unstable();
