@@ -523,11 +523,13 @@ fn values_beyond_single_precision_are_refused() {
         )
         .as_bytes(),
     );
-    let err = render_err(&p, &["--array", "q", "--support-radius", "0.2"]);
-    assert!(
-        err.contains("nanvalue.vtu") && err.contains("'q' of particle 1 is NaN"),
-        "{err}"
-    );
+    for field in [&["--array", "q"][..], &["--iso", "0.5", "--iso-field", "q"]] {
+        let err = render_err(&p, &[field, &["--support-radius", "0.2"]].concat());
+        assert!(
+            err.contains("nanvalue.vtu") && err.contains("'q' of particle 1 is NaN"),
+            "{field:?}: {err}"
+        );
+    }
 }
 
 #[test]

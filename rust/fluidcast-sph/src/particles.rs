@@ -443,6 +443,23 @@ fn single_precision(
     Ok(())
 }
 
+/// Refuses value `a` of quantity `q` at particle `i` that the renderers cannot sum: NaN
+/// (summed into every sample its support reaches, it makes them all not a number, drawn as
+/// nothing) or beyond single precision.
+fn check_value(file: &Path, q: &Quantity, i: usize, a: f64) -> Result<(), ParticleError> {
+    if a.is_nan() {
+        return Err(ParticleError::Other {
+            file: file.to_path_buf(),
+            message: format!(
+                "'{}' of particle {i} is NaN: it would blank out every sample its support \
+                 reaches; replace or remove such values",
+                q.array
+            ),
+        });
+    }
+    single_precision(file, i, false, &[("value", a)])
+}
+
 /// One value per point index, computed when asked.
 type PerParticle<'a> = Box<dyn Fn(usize) -> f64 + 'a>;
 
@@ -666,21 +683,7 @@ impl Particles {
             Some(q) => {
                 let a = array(src, &q.array)?;
                 let v = component_at(&a, q, &file)?;
-                kept_values(kept, count, v, |i, a| {
-                    if a.is_nan() {
-                        // Summed into every sample its support reaches, a NaN makes them all
-                        // not a number (drawn as nothing): refused instead.
-                        return Err(ParticleError::Other {
-                            file: file.clone(),
-                            message: format!(
-                                "'{}' of particle {i} is NaN: it would blank out every sample \
-                                 its support reaches; replace or remove such values",
-                                q.array
-                            ),
-                        });
-                    }
-                    single_precision(&file, i, false, &[("value", a)])
-                })?
+                kept_values(kept, count, v, |i, a| check_value(&file, q, i, a))?
             }
             None => vec![1.0; count],
         };
@@ -808,9 +811,7 @@ impl Particles {
         let a = array(src, &q.array)?;
         let file = src.path();
         let v = component_at(&a, q, file)?;
-        kept_values(&kept, count, v, |i, a| {
-            single_precision(file, i, false, &[("value", a)])
-        })
+        kept_values(&kept, count, v, |i, a| check_value(file, q, i, a))
     }
 
     /// The particles `keep` (indices, in the order given), without the notes.
