@@ -78,14 +78,25 @@ fn split_rects(
     align: u32,
     out: &mut Vec<[u32; 4]>,
 ) {
-    let n = count(rect);
+    split_counted(count, (rect, count(rect)), max_particles, align, out);
+}
+
+/// [`split_rects`] of `rect` holding `n` particles (each rectangle is counted once).
+fn split_counted(
+    count: &impl Fn([u32; 4]) -> usize,
+    (rect, n): ([u32; 4], usize),
+    max_particles: usize,
+    align: u32,
+    out: &mut Vec<[u32; 4]>,
+) {
     if n > max_particles {
         if let Some((a, b)) = halves(rect, align) {
+            let (na, nb) = (count(a), count(b));
             // Where most particles reach both halves (particles larger than the tile),
             // splitting on would only multiply the renders, not shed particles.
-            if (count(a) + count(b)) * 10 <= n * 18 {
-                split_rects(count, a, max_particles, align, out);
-                split_rects(count, b, max_particles, align, out);
+            if (na + nb) * 10 <= n * 18 {
+                split_counted(count, (a, na), max_particles, align, out);
+                split_counted(count, (b, nb), max_particles, align, out);
                 return;
             }
         }
