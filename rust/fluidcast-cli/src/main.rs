@@ -149,18 +149,19 @@ fn main() {
     }
 }
 
+/// What to do about a volume of mass / density that is not finite and positive (a zero
+/// density: SPlisHSPlasH writes one for particles emitted in that frame).
+const ZERO_DENSITY_HINT: &str = "volumes are mass / density; --uniform-volume gives every \
+    particle the same volume (the default csph field is then the kernel-weighted mean of the \
+    values), --volume-array NAME takes them from an array";
+
 /// What a user can do about an error the data caused, where the CLI has an option for it.
 fn hint(e: &anyhow::Error) -> Option<&'static str> {
-    e.chain().find_map(|c| {
-        match c.downcast_ref::<ParticleError>() {
-        // A zero density (SPlisHSPlasH writes one for particles emitted in that frame): the
-        // Shepard-normalised field does not depend on a uniform volume.
-        Some(ParticleError::BadVolume { from, .. }) if from.contains(" / ") => Some(
-            "volumes are mass / density; --uniform-volume gives every particle the same volume \
-             (the default csph field is then the kernel-weighted mean of the values), \
-             --volume-array NAME takes them from an array",
-        ),
-        _ => None,
-    }
-    })
+    e.chain()
+        .find_map(|c| match c.downcast_ref::<ParticleError>() {
+            Some(ParticleError::BadVolume { from, .. }) if from.contains(" / ") => {
+                Some(ZERO_DENSITY_HINT)
+            }
+            _ => None,
+        })
 }
