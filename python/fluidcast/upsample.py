@@ -30,7 +30,7 @@ import numpy as np
 import vtk
 from vtkmodules.util import numpy_support as ns
 
-from .data import read_points
+from .data import read_points, vertex_cells
 
 EXTENSIVE = ("mass", "m", "volume", "V")
 LENGTH = ("h", "radius", "smoothing_length")
@@ -99,22 +99,9 @@ def upsample(ds, k: int, jitter: float, seed: int, extensive: tuple[str, ...],
         out = ns.numpy_to_vtk(np.ascontiguousarray(a), deep=True, array_type=src.GetDataType())
         out.SetName(src.GetName())
         poly.GetPointData().AddArray(out)
-    poly.SetVerts(vertices(n * k3))
+    poly.SetVerts(vertex_cells(n * k3))
     poly.SetFieldData(scaled_field_data(ds.GetFieldData(), k))
     return poly
-
-
-def vertices(count: int) -> vtk.vtkCellArray:
-    """One vertex cell per point, 32-bit ids where they fit (half the size on disk)."""
-    cells = vtk.vtkCellArray()
-    if count < 2**31 - 1:
-        cells.ConvertTo32BitStorage()
-        kind = np.int32
-    else:
-        kind = np.int64
-    ids = np.arange(count + 1, dtype=kind)
-    cells.SetData(ns.numpy_to_vtk(ids, deep=True), ns.numpy_to_vtk(ids[:-1], deep=True))
-    return cells
 
 
 def scaled_field_data(fd: vtk.vtkFieldData, k: int) -> vtk.vtkFieldData:
