@@ -126,6 +126,14 @@ fn scenes() -> Vec<Scene> {
         tf,
         size: (128, 96),
     });
+    let (p, tf) = fluidcast_testkit::behind_a_front();
+    out.push(Scene {
+        name: "behind a front",
+        cam: orbit(&p, 5.0, 3.0),
+        p,
+        tf,
+        size: (96, 72),
+    });
     let (p, tf) = faint_cloud();
     out.push(Scene {
         name: "faint cloud",
@@ -168,7 +176,14 @@ fn gpu_grid_and_plan_match_the_cpu_mirror() {
             tolerance: Some(0.02),
             ..Default::default()
         };
-        for (mode, adaptive) in modes().into_iter().chain([("0.02", coarse)]) {
+        // Depth levels alone, where super-pixels would take the cells behind a front.
+        let levels_only = PlanParams {
+            tolerance: Some(0.01),
+            superpixels: false,
+            ..Default::default()
+        };
+        let extra = [("0.02", coarse), ("0.01 no super-pixels", levels_only)];
+        for (mode, adaptive) in modes().into_iter().chain(extra) {
             let prm = params(s.size, adaptive);
             let cpu = plan_adaptive(&s.p, None, &s.cam, &s.tf, &prm).unwrap();
             let (r, d) = g.render_with_dump(&s.p, None, &s.cam, &s.tf, &prm).unwrap();

@@ -29,6 +29,14 @@
 //!   level) and the bound stays a bound.
 //! * Early ray termination at transmittance `min_transmittance` can change a pixel by at most
 //!   that much, so the greedy keeps the bound below `E_I − min_transmittance`.
+//! * The level cap (Sec. 4.2: a cell's strict bound at level l no wider than E_I) is taken
+//!   as seen on the screen: the cell's width times the largest transparency in front of it,
+//!   plus what its transparency's width lets through of the chosen back (`level_error`).
+//!   Behind fluid that hides most of a cell, the cell may coarsen although it varies more
+//!   than E_I; in front of nothing it is the paper's cap.
+//! * The greedy takes the cheapest option under the budget (super-pixel, then the highest
+//!   level), where the paper takes the widest bound; they differ only where a finer level's
+//!   bound is wider.
 
 mod interval;
 mod tfbounds;
@@ -661,6 +669,136 @@ enum Choice {
     SuperPixel,
 }
 
+/// One cell of a bundle as the greedy sees it: its strict full-rate bound, that bound
+/// relaxed (Sec. 5.1), and its per-sample bounds for coarser levels (`None` for a surface
+/// cell, which keeps level 0 and is never a super-pixel).
+struct CellAnalysis {
+    full: Bound,
+    relaxed: Bound,
+    samples: Option<Box<CellSamples>>,
+    superpixel: bool,
+}
+
+/// Sec. 5.1: the lower bounds of `bl` (a cell's bound at some level) move up by
+/// E_relax × the width of `b0` (its level-0 bound).
+fn relax(bl: &Bound, b0: &Bound, relax: f64) -> Bound {
+    let mut r = *bl;
+    for ch in 0..4 {
+        let lo0 = b0.hi[ch] - (1.0 - relax) * (b0.hi[ch] - b0.lo[ch]);
+        // max/min, not clamp: a NaN (from degenerate depths) becomes 0, never a panic.
+        r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).max(0.0).min(r.hi[ch]);
+    }
+    r
+}
+
+/// The most a cell's own change of level can move a pixel: every ray's segment through the
+/// cell, at level l and at full rate, lies in `cell` (its strict bound at level l), so a
+/// pixel I = F_I + F_T·(C_I + C_T·B_I), α = 1 − F_T·C_T·B_T moves by at most
+/// F_T·(w(C_I) + w(C_T)·B_I) in colour and F_T·w(C_T)·B_T in alpha, with F_T at most
+/// `front_t` (the largest transparency in front of the cell) and B at most `back`'s upper
+/// bound. This is the level cap of Sec. 4.2 (w(C) ≤ E_I, which takes F_T = 1 and no
+/// back) seen from the screen: a cell behind fluid that already hides most of it may vary
+/// more.
+fn level_error(front_t: f64, cell: &Bound, back: &Bound) -> f64 {
+    let wt = cell.hi[3] - cell.lo[3];
+    let colour = (0..3)
+        .map(|ch| cell.hi[ch] - cell.lo[ch] + wt * back.hi[ch])
+        .fold(wt * back.hi[3], f64::max);
+    front_t * colour
+}
+
+/// Sec. 4.1–4.2 for each cell of bundle `b`: its bounds, and whether it is a surface cell.
+fn analyse_cells(
+    view: &View,
+    b: usize,
+    surface: Option<&[bool]>,
+    stop: f64,
+    params: &PlanParams,
+) -> Vec<CellAnalysis> {
+    let grid = view.grid;
+    let bundle = grid.bundle(b);
+    let parts = Parts::new(&bundle.split(&grid.frame, COVER_SPLIT));
+    grid.bundle_cells(b)
+        .iter()
+        .map(|cell| {
+            let samples = cell_bounds(view, &bundle, &parts, cell, stop);
+            let full = samples.level(0);
+            let is_surface = params.uses_surface_cells()
+                && samples.gappy
+                && surface.is_some_and(|s| {
+                    grid.refs[cell.start as usize..cell.end as usize]
+                        .iter()
+                        .any(|&j| s[j as usize])
+                });
+            CellAnalysis {
+                full,
+                relaxed: relax(&full, &full, params.relax),
+                samples: (!is_surface).then(|| Box::new(samples)),
+                superpixel: params.superpixels && !is_surface,
+            }
+        })
+        .collect()
+}
+
+/// The greedy of Sec. 4.4 and 5.3, back to front: per cell, among full rate, the coarser
+/// levels up to the cap ([`level_error`] below E_I; only those levels are composited) and a
+/// super-pixel, the cheapest whose composite with the relaxed full-rate front and the chosen
+/// back stays below `budget` (full rate when none does). Returns the choices and the
+/// composited bound of the plan.
+fn choose_levels(
+    cells: &[CellAnalysis],
+    maxl: usize,
+    tol: f64,
+    field: &FieldParams,
+    params: &PlanParams,
+) -> (Vec<Choice>, Bound) {
+    let n = cells.len();
+    let budget = tol - field.min_transmittance.max(0.0);
+    // Front composites of the relaxed full-rate bounds, F_c = cells 0..c.
+    let mut front = Vec::with_capacity(n + 1);
+    front.push(Bound::EMPTY);
+    for c in 0..n {
+        let f: Bound = front[c];
+        front.push(f.over(&cells[c].relaxed));
+    }
+    let mut choice = vec![Choice::Level(0); n];
+    let mut back = Bound::EMPTY;
+    let mut options: Vec<(f64, Choice, Bound)> = Vec::with_capacity(LEVELS + 1);
+    for c in (0..n).rev() {
+        let cell = &cells[c];
+        let composite = |cb: &Bound| front[c].over(&cb.over(&back)).width();
+        options.clear();
+        options.push((composite(&cell.relaxed), Choice::Level(0), cell.relaxed));
+        if let Some(samples) = &cell.samples {
+            for l in 1..=maxl {
+                let next = samples.level(l);
+                if level_error(front[c].hi[3], &next, &back) >= tol {
+                    break;
+                }
+                let cb = relax(&next, &cell.full, params.relax);
+                options.push((composite(&cb), Choice::Level(l as u8), cb));
+            }
+        }
+        if cell.superpixel {
+            let w = composite(&cell.full);
+            options.push((w, Choice::SuperPixel, cell.full));
+        }
+        // The cheapest option under the budget: options are listed from the most expensive
+        // (full rate) to the cheapest (super-pixel). (The paper takes the widest bound under
+        // the budget, which is the same where wider bounds come with coarser levels; two
+        // levels whose bounds agree up to rounding went to the finer one by a last-digit
+        // difference, and the CPU and GPU could choose differently.)
+        let chosen = options
+            .iter()
+            .rev()
+            .find(|o| o.0 < budget)
+            .map_or((Choice::Level(0), cell.relaxed), |o| (o.1, o.2));
+        choice[c] = chosen.0;
+        back = chosen.1.over(&back);
+    }
+    (choice, back)
+}
+
 fn plan_bundle(
     view: &View,
     b: usize,
@@ -702,92 +840,14 @@ fn plan_bundle(
             stats,
         };
     };
-    let bundle = grid.bundle(b);
-    let parts = Parts::new(&bundle.split(&grid.frame, COVER_SPLIT));
+    let cells_in = analyse_cells(view, b, surface, stop, params);
+    stats.surface_cells = cells_in.iter().filter(|c| c.samples.is_none()).count() as u64;
     let maxl = grid.params.max_level() as usize;
-    let budget = tol - field.min_transmittance.max(0.0);
-    let mut bounds = vec![[Bound::EMPTY; LEVELS]; n];
-    let mut relaxed = vec![[Bound::EMPTY; LEVELS]; n];
-    let mut lmax = vec![0usize; n];
-    let mut sp_ok = vec![params.superpixels; n];
-    for (c, cell) in cells.iter().enumerate() {
-        let samples = cell_bounds(view, &bundle, &parts, cell, stop);
-        let gappy = samples.gappy;
-        bounds[c][0] = samples.level(0);
-        let is_surface = params.uses_surface_cells()
-            && gappy
-            && surface.is_some_and(|s| {
-                grid.refs[cell.start as usize..cell.end as usize]
-                    .iter()
-                    .any(|&j| s[j as usize])
-            });
-        if is_surface {
-            stats.surface_cells += 1;
-            sp_ok[c] = false;
-        } else {
-            // The level rises while its strict bound stays below E_I (Sec. 4.2); only the
-            // levels up to there and the first above are composited.
-            while lmax[c] < maxl {
-                let next = samples.level(lmax[c] + 1);
-                if next.width() >= tol {
-                    break;
-                }
-                lmax[c] += 1;
-                bounds[c][lmax[c]] = next;
-            }
-        }
-        let b0 = bounds[c][0];
-        for l in 0..=lmax[c] {
-            let bl = bounds[c][l];
-            let mut r = bl;
-            for ch in 0..4 {
-                // Sec. 5.1: lower bounds move up by E_relax × the level-0 width.
-                let lo0 = b0.hi[ch] - (1.0 - params.relax) * (b0.hi[ch] - b0.lo[ch]);
-                // max/min, not clamp: a NaN (from degenerate depths) becomes 0, never a panic.
-                r.lo[ch] = (lo0 + (bl.lo[ch] - b0.lo[ch])).max(0.0).min(r.hi[ch]);
-            }
-            relaxed[c][l] = r;
-        }
-    }
-    // Front composites of the relaxed full-rate bounds, F_c = cells 0..c.
-    let mut front = Vec::with_capacity(n + 1);
-    front.push(Bound::EMPTY);
-    for c in 0..n {
-        let f: Bound = front[c];
-        front.push(f.over(&relaxed[c][0]));
-    }
-    // Greedy, back to front (Sec. 4.4, 5.3).
-    let mut choice = vec![Choice::Level(0); n];
-    let mut back = Bound::EMPTY;
-    let mut options: Vec<(f64, u8, Choice, Bound)> = Vec::with_capacity(LEVELS + 1);
-    for c in (0..n).rev() {
-        options.clear();
-        for (l, &cb) in relaxed[c].iter().enumerate().take(lmax[c] + 1) {
-            let w = front[c].over(&cb.over(&back)).width();
-            options.push((w, l as u8, Choice::Level(l as u8), cb));
-        }
-        if sp_ok[c] {
-            let cb = bounds[c][0];
-            let w = front[c].over(&cb.over(&back)).width();
-            options.push((w, u8::MAX, Choice::SuperPixel, cb));
-        }
-        // Ascending width; on ties the cheaper option (higher level, super-pixel) last.
-        options.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let mut chosen = (Choice::Level(0), relaxed[c][0]);
-        for o in &options {
-            if o.0 < budget {
-                chosen = (o.2, o.3);
-            } else {
-                break;
-            }
-        }
-        choice[c] = chosen.0;
-        back = chosen.1.over(&back);
-    }
-    let full = bounds
+    let (choice, back) = choose_levels(&cells_in, maxl, tol, field, params);
+    let full = cells_in
         .iter()
         .rev()
-        .fold(Bound::EMPTY, |acc, b| b[0].over(&acc));
+        .fold(Bound::EMPTY, |acc, c| c.full.over(&acc));
 
     // Cell merging (Sec. 6.2): pairs of aligned runs of equal size and level, level by level.
     let mut spans: Vec<(Span, u32)> = cells
@@ -796,7 +856,7 @@ fn plan_bundle(
         .map(|(i, cell)| {
             let (level, sp) = match choice[i] {
                 Choice::Level(l) => (l, None),
-                Choice::SuperPixel => (0, Some(bounds[i][0].mid().map(|v| v as f32))),
+                Choice::SuperPixel => (0, Some(cells_in[i].full.mid().map(|v| v as f32))),
             };
             (
                 Span {
@@ -1019,6 +1079,56 @@ mod tests {
             assert!(
                 gaps > 0 && cells - gaps >= 100,
                 "{parallel}: {gaps} of {cells} gappy"
+            );
+        }
+    }
+
+    /// `level_error` is the largest pixel change that swapping a cell's segment for another
+    /// inside its bound can make, front and back anywhere inside theirs: the maximum over
+    /// the bounds' corners (the composite is monotone in every quantity), found by brute
+    /// force, equals it.
+    #[test]
+    fn level_error_is_the_largest_pixel_change() {
+        let mut rnd = fluidcast_testkit::rng(7);
+        let mut r = |lo: f64, hi: f64| lo + (hi - lo) * f64::from(rnd());
+        for _ in 0..2000 {
+            let mut bound = |t_lo: f64| {
+                let lo = [r(0.0, 0.5), r(0.0, 0.5), r(0.0, 0.5), r(t_lo, 1.0)];
+                let hi = [0, 1, 2, 3].map(|c| {
+                    if c == 3 {
+                        r(lo[c], 1.0)
+                    } else {
+                        lo[c] + r(0.0, 0.5)
+                    }
+                });
+                Bound { lo, hi }
+            };
+            let (cell, back) = (bound(0.0), bound(0.0));
+            let front_t = r(0.0, 1.0);
+            let corners = |b: &Bound| -> Vec<[f64; 4]> {
+                (0..16)
+                    .map(|m| [0, 1, 2, 3].map(|c| if m >> c & 1 == 1 { b.hi[c] } else { b.lo[c] }))
+                    .collect()
+            };
+            let mut most = 0.0f64;
+            for c1 in corners(&cell) {
+                for c2 in corners(&cell) {
+                    for bk in corners(&back) {
+                        for f in [0.0, front_t] {
+                            let px = |c: [f64; 4]| {
+                                let v = [0, 1, 2].map(|ch| f * (c[ch] + c[3] * bk[ch]));
+                                [v[0], v[1], v[2], 1.0 - f * c[3] * bk[3]]
+                            };
+                            let (a, b) = (px(c1), px(c2));
+                            most = (0..4).map(|ch| (a[ch] - b[ch]).abs()).fold(most, f64::max);
+                        }
+                    }
+                }
+            }
+            let e = level_error(front_t, &cell, &back);
+            assert!(
+                (e - most).abs() <= 1e-12,
+                "level_error {e}, brute force {most}"
             );
         }
     }

@@ -101,6 +101,30 @@ pub fn depth_ramp_tf(alpha: f64) -> TransferFunction {
     tf
 }
 
+/// [`depth_ramp`]'s block with its front half (toward +z) at a constant, nearly opaque value
+/// and its back half holding a field that varies across every bundle under a faint part of
+/// the transfer function (also returned). Seen from +z, most back cells' own strict bounds
+/// are wider than an E_I of 0.01, so the paper's level cap (w(C) ≤ E_I) keeps them at full
+/// rate, but well under 1 % of the light from behind the front reaches a pixel: a cap that
+/// weighs a cell by the transparency in front of it coarsens them.
+pub fn behind_a_front() -> (Particles, TransferFunction) {
+    let mut p = depth_ramp(20);
+    for (x, v) in p.positions.iter().zip(p.values.iter_mut()) {
+        *v = if x[2] > 0.0 {
+            0.0
+        } else {
+            0.6 + 0.3 * (12.0 * x[0]).sin() * (12.0 * x[1]).cos()
+        };
+    }
+    let mut tf = TransferFunction::preset("Viridis")
+        .expect("Viridis is a built-in preset")
+        .with_range(0.0, 1.0)
+        .expect("a valid range");
+    tf.opacity = vec![(0.0, 0.9), (0.1, 0.9), (0.2, 0.05), (1.0, 0.05)];
+    tf.unit_distance = 0.1;
+    (p, tf)
+}
+
 /// The depth-ramp cases the strict tests run on the CPU and the GPU: (opacity, E_I, azimuth
 /// in degrees, parallel projection), each with 64 depth samples per cell.
 pub const DEPTH_RAMP_CASES: [(f64, f64, f64, bool); 4] = [

@@ -374,6 +374,14 @@ fn relaxed(c: u32, l: u32) -> Bound {
     return Bound(min(max(lo0 + (bl.lo - b0.lo), vec4<f32>(0.0)), bl.hi), bl.hi);
 }
 
+/// The most a cell's own change of level can move a pixel (the CPU's `level_error`):
+/// F_T·(w(C_I) + w(C_T)·B_I) in colour, F_T·w(C_T)·B_T in alpha.
+fn level_error(front_t: f32, cell: Bound, back: Bound) -> f32 {
+    let w = cell.hi - cell.lo;
+    let colour = w.xyz + w.w * back.hi.xyz;
+    return front_t * max(max(colour.x, colour.y), max(colour.z, w.w * back.hi.w));
+}
+
 fn span_of(c: u32, level: u32) -> Span {
     let sp = level == 255u;
     return Span(c, 1u, select(level, 0u, sp), select(0u, 1u, sp), 0u, 0u, 0u, 0u, vec4<f32>(0.0));
@@ -416,40 +424,37 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
             front[2u * c + 1u] = f.hi;
             f = over(f, relaxed(c, 0u));
         }
-        // Greedy, back to front (Sec. 4.4, 5.3): among the options whose composited bound stays
-        // under the budget the widest, on ties the cheaper (higher level, super-pixel last).
+        // Greedy, back to front (Sec. 4.4, 5.3): the cheapest option (the highest level, a
+        // super-pixel cheapest of all) whose composited bound stays under the budget, as the
+        // CPU's `choose_levels`; full rate where none does.
         var c = c1;
         while (c > c0) {
             c = c - 1u;
             let is_surface = P.surface_rule == 1u && (info[c] & 3u) == 3u;
+            let fr = Bound(front[2u * c], front[2u * c + 1u]);
             var lmax = 0u;
             if (is_surface) {
                 n_surface = n_surface + 1u;
             } else {
-                while (lmax < P.max_level && width(bound_at(c, lmax + 1u)) < P.tolerance) {
+                while (lmax < P.max_level
+                       && level_error(fr.hi.w, bound_at(c, lmax + 1u), back) < P.tolerance) {
                     lmax = lmax + 1u;
                 }
             }
-            let fr = Bound(front[2u * c], front[2u * c + 1u]);
             var best = relaxed(c, 0u);
             var best_key = 0u;
-            var best_w = -1.0;
-            for (var l = 0u; l <= lmax; l = l + 1u) {
+            for (var l = 1u; l <= lmax; l = l + 1u) {
                 let cb = relaxed(c, l);
-                let w = width(over(fr, over(cb, back)));
-                if (w < P.budget && (w > best_w || (w == best_w && l > best_key))) {
+                if (width(over(fr, over(cb, back))) < P.budget) {
                     best = cb;
                     best_key = l;
-                    best_w = w;
                 }
             }
             if (P.superpixels == 1u && !is_surface) {
                 let cb = bound_at(c, 0u);
-                let w = width(over(fr, over(cb, back)));
-                if (w < P.budget && w >= best_w) {
+                if (width(over(fr, over(cb, back))) < P.budget) {
                     best = cb;
                     best_key = 255u;
-                    best_w = w;
                 }
             }
             levels[c] = best_key;
