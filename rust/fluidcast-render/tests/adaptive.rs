@@ -548,21 +548,37 @@ fn strict_plan_adapts_a_real_share_within_e_i() {
     for (v, e) in [(0, 0.004), (1, 0.01), (2, 0.02)] {
         // Looking along z (the oscillation's direction), so that most bundles see one half.
         let cam = camera_for(&p, 8.0 * v as f64 - 8.0, 10.0, v == 2);
-        let off = render_adaptive(&p, None, &cam, &tf, &params(96, 72, None)).unwrap();
         let mut prm = params(96, 72, Some(e));
         prm.adaptive = prm.adaptive.strict();
-        let s = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
-        let st = s.stats.plan.clone().unwrap();
-        let adapted = st.level_cells[1..].iter().sum::<u64>();
-        let m = max_abs(&off.image, &s.image);
-        assert!(
-            adapted as f64 >= 0.15 * st.cells as f64,
-            "view {v}, E_I = {e}: the strict plan adapts only {adapted} of {} cells",
-            st.cells
-        );
-        assert!(m > 0.0, "view {v}, E_I = {e}: adapting changed nothing");
-        assert!(m <= e, "view {v}, strict E_I = {e}: max abs error {m}");
+        adapts_within_e_i(&p, &tf, &cam, &prm, 0.15, &format!("strict, view {v}"));
     }
+}
+
+/// Renders `p` at full rate and with `prm` (E_I its tolerance): at least `share` of the
+/// cells adapt in depth, the image changes, and no pixel moves by more than E_I.
+fn adapts_within_e_i(
+    p: &Particles,
+    tf: &TransferFunction,
+    cam: &Camera,
+    prm: &RenderParams,
+    share: f64,
+    what: &str,
+) {
+    let e = prm.adaptive.tolerance.expect("an adaptive plan");
+    let mut full = prm.clone();
+    full.adaptive.tolerance = None;
+    let off = render_adaptive(p, None, cam, tf, &full).unwrap();
+    let s = render_adaptive(p, None, cam, tf, prm).unwrap();
+    let st = s.stats.plan.clone().unwrap();
+    let adapted = st.level_cells[1..].iter().sum::<u64>();
+    let m = max_abs(&off.image, &s.image);
+    assert!(
+        adapted as f64 >= share * st.cells as f64,
+        "{what}, E_I = {e}: only {adapted} of {} cells adapt",
+        st.cells
+    );
+    assert!(m > 0.0, "{what}, E_I = {e}: adapting changed nothing");
+    assert!(m <= e, "{what}, E_I = {e}: max abs error {m}");
 }
 
 /// The strict guarantee where a coarse sample stands for values far from its own
@@ -630,20 +646,9 @@ fn relaxed_plan_coarsens_what_the_front_hides() {
     let e = 0.01;
     for parallel in [false, true] {
         let cam = camera_for(&p, 5.0, 3.0, parallel);
-        let off = render_adaptive(&p, None, &cam, &tf, &params(96, 72, None)).unwrap();
         let mut prm = params(96, 72, Some(e));
         prm.adaptive.superpixels = false;
-        let s = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
-        let st = s.stats.plan.clone().unwrap();
-        let adapted = st.level_cells[1..].iter().sum::<u64>();
-        let m = max_abs(&off.image, &s.image);
-        assert!(
-            adapted as f64 >= 0.2 * st.cells as f64,
-            "parallel {parallel}: only {adapted} of {} cells adapt",
-            st.cells
-        );
-        assert!(m > 0.0, "parallel {parallel}: adapting changed nothing");
-        assert!(m <= e, "parallel {parallel}: max abs error {m} above E_I");
+        adapts_within_e_i(&p, &tf, &cam, &prm, 0.2, &format!("parallel {parallel}"));
     }
 }
 
