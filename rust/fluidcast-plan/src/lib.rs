@@ -676,7 +676,6 @@ struct CellAnalysis {
     full: Bound,
     relaxed: Bound,
     samples: Option<Box<CellSamples>>,
-    superpixel: bool,
 }
 
 /// Sec. 5.1: the lower bounds of `bl` (a cell's bound at some level) move up by
@@ -734,7 +733,6 @@ fn analyse_cells(
                 full,
                 relaxed: relax(&full, &full, params.relax),
                 samples: (!is_surface).then(|| Box::new(samples)),
-                superpixel: params.superpixels && !is_surface,
             }
         })
         .collect()
@@ -763,12 +761,15 @@ fn choose_levels(
     }
     let mut choice = vec![Choice::Level(0); n];
     let mut back = Bound::EMPTY;
-    let mut options: Vec<(f64, Choice, Bound)> = Vec::with_capacity(LEVELS + 1);
     for c in (0..n).rev() {
         let cell = &cells[c];
-        let composite = |cb: &Bound| front[c].over(&cb.over(&back)).width();
-        options.clear();
-        options.push((composite(&cell.relaxed), Choice::Level(0), cell.relaxed));
+        let fits = |cb: &Bound| front[c].over(&cb.over(&back)).width() < budget;
+        // The cheapest option under the budget, trying them from the most expensive (full
+        // rate, also where none fits) to the cheapest (super-pixel). (The paper takes the
+        // widest bound under the budget, which is the same where wider bounds come with
+        // coarser levels; two levels whose bounds agree up to rounding went to the finer one
+        // by a last-digit difference, and the CPU and GPU could choose differently.)
+        let mut chosen = (Choice::Level(0), cell.relaxed);
         if let Some(samples) = &cell.samples {
             for l in 1..=maxl {
                 let next = samples.level(l);
@@ -776,23 +777,14 @@ fn choose_levels(
                     break;
                 }
                 let cb = relax(&next, &cell.full, params.relax);
-                options.push((composite(&cb), Choice::Level(l as u8), cb));
+                if fits(&cb) {
+                    chosen = (Choice::Level(l as u8), cb);
+                }
+            }
+            if params.superpixels && fits(&cell.full) {
+                chosen = (Choice::SuperPixel, cell.full);
             }
         }
-        if cell.superpixel {
-            let w = composite(&cell.full);
-            options.push((w, Choice::SuperPixel, cell.full));
-        }
-        // The cheapest option under the budget: options are listed from the most expensive
-        // (full rate) to the cheapest (super-pixel). (The paper takes the widest bound under
-        // the budget, which is the same where wider bounds come with coarser levels; two
-        // levels whose bounds agree up to rounding went to the finer one by a last-digit
-        // difference, and the CPU and GPU could choose differently.)
-        let chosen = options
-            .iter()
-            .rev()
-            .find(|o| o.0 < budget)
-            .map_or((Choice::Level(0), cell.relaxed), |o| (o.1, o.2));
         choice[c] = chosen.0;
         back = chosen.1.over(&back);
     }
@@ -1092,8 +1084,8 @@ mod tests {
         let mut rnd = fluidcast_testkit::rng(7);
         let mut r = |lo: f64, hi: f64| lo + (hi - lo) * f64::from(rnd());
         for _ in 0..2000 {
-            let mut bound = |t_lo: f64| {
-                let lo = [r(0.0, 0.5), r(0.0, 0.5), r(0.0, 0.5), r(t_lo, 1.0)];
+            let mut bound = || {
+                let lo = [r(0.0, 0.5), r(0.0, 0.5), r(0.0, 0.5), r(0.0, 1.0)];
                 let hi = [0, 1, 2, 3].map(|c| {
                     if c == 3 {
                         r(lo[c], 1.0)
@@ -1103,7 +1095,7 @@ mod tests {
                 });
                 Bound { lo, hi }
             };
-            let (cell, back) = (bound(0.0), bound(0.0));
+            let (cell, back) = (bound(), bound());
             let front_t = r(0.0, 1.0);
             let corners = |b: &Bound| -> Vec<[f64; 4]> {
                 (0..16)
