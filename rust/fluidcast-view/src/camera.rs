@@ -223,7 +223,13 @@ impl ViewFrame {
     /// The ray through pixel centre (i, j): origin and direction with `dir · forward = 1`, so
     /// that the point at view depth z is `origin + z · dir`.
     pub fn ray(&self, i: u32, j: u32) -> (DVec3, DVec3) {
-        let (x, y) = self.ndc(i as f64, j as f64);
+        self.ray_at(i as f64 + 0.5, j as f64 + 0.5)
+    }
+
+    /// The ray through continuous pixel coordinates (x, y) (x from the left edge, y from the
+    /// top edge; pixel (i, j)'s centre is (i + ½, j + ½)), as [`ViewFrame::ray`].
+    pub fn ray_at(&self, x: f64, y: f64) -> (DVec3, DVec3) {
+        let (x, y) = self.ndc(x - 0.5, y - 0.5);
         match self.parallel {
             Some(s) => (
                 self.eye + self.right * (x * s * self.aspect) + self.up * (y * s),
