@@ -24,6 +24,7 @@ mod overlay;
 mod perspective;
 pub mod precision;
 mod raycast;
+mod rbf;
 mod reference;
 mod span;
 mod surface;
@@ -42,6 +43,7 @@ pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, Sampli
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
+pub use rbf::{render_rbf, white_offset, RbfRenderParams, MAX_RBF_STEPS};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 pub use tiles::{
@@ -207,6 +209,10 @@ pub enum RenderError {
     /// Rendering in screen tiles within a memory budget ([`tile_particles_within`]).
     #[error("a memory limit leaving {} for rendering is too small: it needs at least {} (the image, 9 bytes a particle, and a tile of 1 MiB)", fluidcast_mem::Bytes(*.budget), fluidcast_mem::Bytes(*.needed))]
     MemoryBudget { budget: u64, needed: u64 },
+    #[error("RBF field: {0}")]
+    RbfField(#[from] fluidcast_rbf::RbfError),
+    #[error("RBF renderer: {0}")]
+    Rbf(String),
 }
 
 /// Largest kernel weight the grid renderers accept: single precision's largest number over a
