@@ -16,6 +16,7 @@ mod bench;
 mod info;
 mod options;
 mod probe;
+mod rbf;
 mod render;
 mod surface;
 mod view;

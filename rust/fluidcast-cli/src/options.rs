@@ -12,7 +12,10 @@ pub struct ParticleArgs {
     /// Smoothing kernel: cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian.
     #[arg(long, default_value = "cubic")]
     pub kernel: String,
-    /// Field reconstruction: csph (Shepard-normalised, default), sph (plain sum), density.
+    /// Field reconstruction: csph (Shepard-normalised, default), sph (plain sum), density, or
+    /// rbf (the attribute-aware RBF field of Morrical et al. 2023: truncated Gaussians whose
+    /// weight is the transfer function's opacity at their attribute; see the --rbf-* options,
+    /// --radius-map, --classification and --spp).
     #[arg(long)]
     pub field: Option<String>,
     /// One support radius H for all particles (world units; the kernel is 0 beyond H).
@@ -85,10 +88,23 @@ impl ParticleArgs {
         self.kernel.parse::<Kernel>().map_err(anyhow::Error::msg)
     }
 
+    /// Whether `--field rbf` asks for the RBF field (drawn by its own ray marcher).
+    pub fn rbf(&self) -> bool {
+        self.field
+            .as_deref()
+            .is_some_and(|f| f.eq_ignore_ascii_case("rbf"))
+    }
+
     /// CSPH for an attribute, density when no array is chosen, unless --field says otherwise.
+    /// For `--field rbf`, the SPH field whose colour-map range it starts from (the attribute's
+    /// range, or a density's).
     pub fn field(&self) -> Result<FieldKind> {
         match &self.field {
-            Some(f) => f.parse::<FieldKind>().map_err(anyhow::Error::msg),
+            Some(_) if self.rbf() && self.array.is_some() => Ok(FieldKind::Csph),
+            Some(_) if self.rbf() => Ok(FieldKind::Density),
+            Some(f) => f
+                .parse::<FieldKind>()
+                .map_err(|e| anyhow::anyhow!("{}", e.replace("or density)", "density or rbf)"))),
             None if self.array.is_none() => Ok(FieldKind::Density),
             None => Ok(FieldKind::Csph),
         }

@@ -61,6 +61,8 @@ pub struct RenderArgs {
     aovs: bool,
     #[command(flatten)]
     split: SplitArgs,
+    #[command(flatten)]
+    rbf: crate::rbf::RbfArgs,
 }
 
 /// Rendering a view in screen tiles, to bound memory.
@@ -507,6 +509,27 @@ pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
     pb
 }
 
+/// `--field rbf`: the field and march options, after refusing what its renderer does not do.
+fn rbf_setup(
+    a: &RenderArgs,
+    gpu: bool,
+) -> Result<Option<(fluidcast_rbf::RbfOptions, fluidcast_render::RbfRenderParams)>> {
+    if !a.particles.rbf() {
+        return Ok(None);
+    }
+    if a.sampling.mode.is_some() || gpu {
+        bail!("--field rbf is drawn by its own ray marcher, on the CPU (no GPU path yet): drop --mode and --backend gpu");
+    }
+    if a.split.memory_limit.is_some() || a.split.tiles.is_some() {
+        bail!("--field rbf does not render in screen tiles yet: drop --memory-limit and --tiles");
+    }
+    if a.surface.on() || a.surface.shade_volume {
+        bail!("--field rbf draws no iso-surfaces and no shaded volume yet: drop --iso and --shade-volume");
+    }
+    let opts = a.rbf.options(a.particles.array.is_some())?;
+    Ok(Some((opts, a.rbf.render_params()?)))
+}
+
 pub fn run(a: RenderArgs) -> Result<()> {
     let background = parse_background(&a.background)?;
     let png_encoding = if a.srgb {
@@ -538,6 +561,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
     }
+    let rbf = rbf_setup(&a, gpu)?;
+    let mode = if rbf.is_some() { Mode::Reference } else { mode };
     let recipe = Recipe {
         spec: &spec,
         surface: &a.surface,
@@ -561,6 +586,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             prep_ms,
         } = frame;
         let (time, file) = &all[fi];
+        let first = camera.is_none();
         // Camera, range and opacity unit are fixed from the first frame for a whole series.
         let cam = match &camera {
             Some(c) => c,
@@ -578,8 +604,21 @@ pub fn run(a: RenderArgs) -> Result<()> {
             .split
             .max_tile_particles(&particles, params.width, params.height)?;
         let how = (mode, a.sampling.grid_cell, tiles);
-        let (image, mut stats) = render_frame(&particles, None, cam, &tf, &params, how, &renderer)
-            .with_context(|| format!("rendering {}", file.display()))?;
+        let mut rbf_bytes = None;
+        let (image, mut stats) = match &rbf {
+            Some((opts, rp)) => {
+                let auto_range = first && !a.view.has_range();
+                let how = (opts, rp, auto_range);
+                let refit = a.stats.is_some();
+                let (image, stats, bytes) =
+                    crate::rbf::render_frame(&particles, cam, &mut tf, &params, how, refit)
+                        .with_context(|| format!("rendering {}", file.display()))?;
+                rbf_bytes = Some(bytes);
+                (image, stats)
+            }
+            None => render_frame(&particles, None, cam, &tf, &params, how, &renderer)
+                .with_context(|| format!("rendering {}", file.display()))?,
+        };
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));
         let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') {
@@ -597,7 +636,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         stats
             .stages
             .push(("write", t_write.elapsed().as_secs_f64() * 1e3));
-        all_stats.push(stats_json(&stats, file, *time));
+        let mut js = stats_json(&stats, file, *time);
+        if let Some(b) = rbf_bytes {
+            js["rbf_memory_bytes"] = json!(b);
+        }
+        all_stats.push(js);
         match &progress {
             Some(pb) => pb.inc(1),
             None => report_frame(&out, &stats),

@@ -182,6 +182,11 @@ impl SamplingArgs {
 }
 
 impl ViewArgs {
+    /// Whether --range sets the colour map's range (else the data do).
+    pub fn has_range(&self) -> bool {
+        self.range.is_some()
+    }
+
     /// The transfer function as named, with --opacity-scale applied (range and unit distance
     /// come from the data in [`ViewArgs::setup`]).
     pub fn base_tf(&self) -> Result<TransferFunction> {

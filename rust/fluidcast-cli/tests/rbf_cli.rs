@@ -1,0 +1,106 @@
+//! `fluidcast render --field rbf` from the command line.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
+mod common;
+
+use fluidcast_image::Image;
+
+/// Renders the sample at 120x90 with the RBF field and `extra`: (exit code, stderr).
+fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
+    let sample = common::sample();
+    let mut args = vec![
+        "render",
+        sample.to_str().unwrap(),
+        "--field",
+        "rbf",
+        "--size",
+        "120x90",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let (code, _, err) = common::run(&args);
+    (code, err)
+}
+
+fn max_diff(a: &Image, b: &Image) -> f32 {
+    a.rgba
+        .iter()
+        .zip(&b.rgba)
+        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f32::max)
+}
+
+/// The options reach the image: classification, the radius map, the passes and the seed,
+/// a density field without an array; stats carry the BVH's build and refit.
+#[test]
+fn rbf_options_change_the_image_as_they_say() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |n: &str| dir.path().join(n);
+    let run = |extra: &[&str], name: &str| {
+        let (code, err) = render(extra, &path(name));
+        assert_eq!(code, Some(0), "{extra:?}: {err}");
+        Image::read(&path(name)).unwrap()
+    };
+    let vel = ["--array", "velocity"];
+    let stats = path("s.json");
+    let post = run(
+        &[&vel[..], &["--stats", stats.to_str().unwrap()]].concat(),
+        "post.exr",
+    );
+    assert!(post.rgba.iter().any(|p| p[3] > 0.3), "drew something");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    for stage in ["bvh_ms", "refit_ms", "raycast_ms"] {
+        assert!(s["timings"][stage].as_f64().is_some(), "{stage}: {s}");
+    }
+    assert!(s["rbf_memory_bytes"].as_u64().unwrap() > 0);
+    let again = run(&vel, "again.exr");
+    assert_eq!(max_diff(&post, &again), 0.0, "same seed, same image");
+    let pre = run(
+        &[&vel[..], &["--classification", "pre"]].concat(),
+        "pre.exr",
+    );
+    assert!(max_diff(&post, &pre) > 0.01, "pre differs from post");
+    let seed = run(&[&vel[..], &["--seed", "7"]].concat(), "seed.exr");
+    let d = max_diff(&post, &seed);
+    assert!(
+        d > 0.0 && d < 0.2,
+        "another seed: other noise, same image ({d})"
+    );
+    let hidden = run(
+        &[&vel[..], &["--radius-map", "0,0,1,0"]].concat(),
+        "hidden.exr",
+    );
+    assert!(
+        hidden.rgba.iter().all(|p| p[3] == 0.0),
+        "radius 0 hides all"
+    );
+    let spp = run(&[&vel[..], &["--spp", "4"]].concat(), "spp.exr");
+    assert!(max_diff(&post, &spp) > 0.0);
+    let density = run(&[], "density.exr");
+    assert!(density.rgba.iter().any(|p| p[3] > 0.3));
+}
+
+#[test]
+fn rbf_refuses_what_it_does_not_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    for (extra, says) in [
+        (&["--mode", "reference"][..], "own ray marcher"),
+        (&["--backend", "gpu"][..], "own ray marcher"),
+        (&["--tiles", "4"][..], "screen tiles"),
+        (&["--iso", "0.5"][..], "iso-surfaces"),
+        (
+            &["--array", "velocity", "--radius-map", "0,1,1"][..],
+            "--radius-map",
+        ),
+        (&["--radius-map", "0,1,1,1"][..], "needs an attribute"),
+        (&["--rbf-step", "-1"][..], "--rbf-step"),
+        (&["--rbf-radius", "0"][..], "RBF radius"),
+        (&["--leaf-size", "0"][..], "leaf size"),
+        (&["--spp", "0"][..], "spp"),
+    ] {
+        let (code, err) = render(extra, &out);
+        assert_ne!(code, Some(0), "{extra:?}");
+        assert!(err.contains(says), "{extra:?}: {err}");
+    }
+}
