@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
 use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions, DEFAULT_LEAF_SIZE};
-use fluidcast_render::{render_rbf, RbfRenderParams, RenderParams, RenderStats};
+use fluidcast_render::{render_rbf, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -51,6 +51,20 @@ pub struct RbfArgs {
     /// particle's standard deviation (radius/3), over --sampling-scale.
     #[arg(long, allow_hyphen_values = true)]
     pub rbf_step: Option<f64>,
+    /// --field rbf: single scattering with volumetric shadows toward a directional light
+    /// (--light X,Y,Z, the world direction toward it; default: from above and behind the
+    /// camera, view up plus half the way back to the eye and a quarter to the right). The
+    /// transfer function's colours become albedos; each pass shades one point per pixel and
+    /// casts --shadow-samples shadow rays from it, so use --spp to converge.
+    #[arg(long)]
+    pub shadows: bool,
+    /// --shadows: shadow rays per pixel and pass.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub shadow_samples: u32,
+    /// --shadows: the light a fully shadowed point still receives, as a share of the full
+    /// light (0..1).
+    #[arg(long, default_value_t = 0.25)]
+    pub shadow_ambient: f64,
 }
 
 impl RbfArgs {
@@ -76,18 +90,48 @@ impl RbfArgs {
         })
     }
 
-    pub fn render_params(&self) -> Result<RbfRenderParams> {
+    /// The march's parameters; with --shadows the light is `light` (--light, X,Y,Z toward
+    /// it) or comes from `camera`.
+    pub fn render_params(&self, camera: &Camera, light: Option<&str>) -> Result<RbfRenderParams> {
         if let Some(s) = self.rbf_step {
             if !(s.is_finite() && s > 0.0) {
                 bail!("--rbf-step {s}: must be finite and > 0 (world units)");
             }
         }
+        let shadows = if self.shadows {
+            let light = match light {
+                Some(l) => parse_vector(l).context("--light")?,
+                None => {
+                    let f = camera.frame(2, 2)?;
+                    (f.up - f.forward * 0.5 + f.right * 0.25).to_array()
+                }
+            };
+            let s = RbfShadows::new(light, self.shadow_ambient, self.shadow_samples)
+                .context("--light/--shadow-ambient/--shadow-samples")?;
+            Some(s)
+        } else {
+            None
+        };
         Ok(RbfRenderParams {
             spp: self.spp,
             first_pass: 0,
             seed: self.seed,
             step: self.rbf_step,
+            shadows,
         })
+    }
+}
+
+/// `X,Y,Z`: three finite numbers.
+fn parse_vector(s: &str) -> Result<[f64; 3]> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("'{s}': expected X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => bail!("'{s}': expected X,Y,Z, three finite numbers"),
     }
 }
 

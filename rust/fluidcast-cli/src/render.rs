@@ -509,11 +509,8 @@ pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
     pb
 }
 
-/// `--field rbf`: the field and march options, after refusing what its renderer does not do.
-fn rbf_setup(
-    a: &RenderArgs,
-    gpu: bool,
-) -> Result<Option<(fluidcast_rbf::RbfOptions, fluidcast_render::RbfRenderParams)>> {
+/// `--field rbf`: the field's options, after refusing what its renderer does not do.
+fn rbf_setup(a: &RenderArgs, gpu: bool) -> Result<Option<fluidcast_rbf::RbfOptions>> {
     if !a.particles.rbf() {
         return Ok(None);
     }
@@ -526,8 +523,10 @@ fn rbf_setup(
     if a.surface.on() || a.surface.shade_volume {
         bail!("--field rbf draws no iso-surfaces and no shaded volume yet: drop --iso and --shade-volume");
     }
-    let opts = a.rbf.options(a.particles.array.is_some())?;
-    Ok(Some((opts, a.rbf.render_params()?)))
+    // The march's own errors (bad --light, --rbf-step), before reading.
+    a.rbf
+        .render_params(&Camera::default(), a.surface.light.as_deref())?;
+    Ok(Some(a.rbf.options(a.particles.array.is_some())?))
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -606,9 +605,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let how = (mode, a.sampling.grid_cell, tiles);
         let mut rbf_bytes = None;
         let (image, mut stats) = match &rbf {
-            Some((opts, rp)) => {
+            Some(opts) => {
                 let auto_range = first && !a.view.has_range();
-                let how = (opts, rp, auto_range);
+                let rp = a.rbf.render_params(cam, a.surface.light.as_deref())?;
+                let how = (opts, &rp, auto_range);
                 let refit = a.stats.is_some();
                 let (image, stats, bytes) =
                     crate::rbf::render_frame(&particles, cam, &mut tf, &params, how, refit)

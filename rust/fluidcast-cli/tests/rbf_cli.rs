@@ -78,6 +78,22 @@ fn rbf_options_change_the_image_as_they_say() {
     assert!(max_diff(&post, &spp) > 0.0);
     let density = run(&[], "density.exr");
     assert!(density.rgba.iter().any(|p| p[3] > 0.3));
+    // Shadows: the same opacity, darker colours (ambient 0.25 and the fluid's own shadow).
+    let lit = run(
+        &[&vel[..], &["--shadows", "--light", "0,1,0", "--spp", "2"]].concat(),
+        "lit.exr",
+    );
+    let two = run(&[&vel[..], &["--spp", "2"]].concat(), "two.exr");
+    let (mut dark, mut n) = (0.0, 0);
+    for (p, q) in lit.rgba.iter().zip(&two.rgba) {
+        assert!((p[3] - q[3]).abs() < 1e-5, "alpha is emission-absorption's");
+        if q[3] > 0.5 {
+            dark += f64::from(p[0] + p[1] + p[2]) / f64::from(q[0] + q[1] + q[2]).max(1e-6);
+            n += 1;
+        }
+    }
+    let dark = dark / f64::from(n);
+    assert!(dark < 0.9 && dark > 0.25, "lit / unlit colour {dark}");
 }
 
 #[test]
@@ -98,6 +114,9 @@ fn rbf_refuses_what_it_does_not_do() {
         (&["--rbf-radius", "0"][..], "RBF radius"),
         (&["--leaf-size", "0"][..], "leaf size"),
         (&["--spp", "0"][..], "spp"),
+        (&["--shadows", "--light", "0,0,0"][..], "light direction"),
+        (&["--shadows", "--light", "1,2"][..], "X,Y,Z"),
+        (&["--shadows", "--shadow-ambient", "2"][..], "ambient"),
     ] {
         let (code, err) = render(extra, &out);
         assert_ne!(code, Some(0), "{extra:?}");

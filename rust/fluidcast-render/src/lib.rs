@@ -43,7 +43,7 @@ pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, Sampli
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
-pub use rbf::{render_rbf, white_offset, RbfRenderParams, MAX_RBF_STEPS};
+pub use rbf::{render_rbf, white_offset, RbfRenderParams, RbfShadows, MAX_RBF_STEPS};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 pub use tiles::{

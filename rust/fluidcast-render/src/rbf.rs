@@ -42,6 +42,8 @@ pub struct RbfRenderParams {
     /// The step along each ray (world units); `None`: half the median particle's standard
     /// deviation (σ = r/3) divided by [`RenderParams::sampling_scale`].
     pub step: Option<f64>,
+    /// Single scattering with shadows instead of emission–absorption ([`RbfShadows`]).
+    pub shadows: Option<RbfShadows>,
 }
 
 impl Default for RbfRenderParams {
@@ -51,6 +53,7 @@ impl Default for RbfRenderParams {
             first_pass: 0,
             seed: 0,
             step: None,
+            shadows: None,
         }
     }
 }
@@ -117,12 +120,82 @@ struct Active {
     ratio_step: f64,
 }
 
-/// Per-thread buffers: a tile's candidate spheres, a ray's crossings and its active set.
+/// A composited sample of a lit pass: its view depth, the opacity accumulated through it,
+/// and its colour (the albedo).
+#[derive(Debug, Clone, Copy)]
+struct Shade {
+    t: f64,
+    opacity: f64,
+    rgb: [f64; 3],
+}
+
+/// A shadow ray's crossings and active set.
+#[derive(Default)]
+struct ShadowScratch {
+    hits: Vec<RayHit>,
+    active: Vec<Active>,
+}
+
+/// A camera ray's active set and shade points, and its shadow rays' buffers.
+#[derive(Default)]
+struct LitScratch {
+    active: Vec<Active>,
+    shade: Vec<Shade>,
+    shadow: ShadowScratch,
+}
+
+/// Per-thread buffers: a tile's candidate spheres, a ray's crossings, and the rest.
 #[derive(Default)]
 struct Scratch {
     candidates: Vec<u32>,
     hits: Vec<RayHit>,
-    active: Vec<Active>,
+    lit: LitScratch,
+}
+
+/// Seeds (xor-ed into the user's) of the random streams beside the march's offsets: the
+/// shade point's choice and the shadow rays' offsets.
+const PICK_STREAM: u32 = 0x5bd1_e995;
+const SHADOW_STREAM: u32 = 0x27d4_eb2f;
+
+/// A shadow ray stops once its optical depth passes this (transmittance below 2e-9).
+const MAX_OPTICAL_DEPTH: f64 = 20.0;
+
+/// Single scattering toward a directional light (Morrical et al. 2023, Sec. 3.3.2): the
+/// transfer function's colours become albedos.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RbfShadows {
+    /// The direction toward the light (world space, unit length).
+    pub light: [f64; 3],
+    /// The light a fully shadowed point still receives, as a share of the full light
+    /// (0..1): keeps shadowed regions readable.
+    pub ambient: f64,
+    /// Shadow rays per pixel and pass (>= 1), averaged.
+    pub samples: u32,
+}
+
+impl RbfShadows {
+    /// Checks the values and makes the light direction unit length.
+    pub fn new(light: [f64; 3], ambient: f64, samples: u32) -> Result<RbfShadows, RenderError> {
+        let n = light.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !(n.is_finite() && n > 0.0) {
+            return Err(RenderError::Rbf(format!(
+                "light direction {light:?}: must be finite and not zero"
+            )));
+        }
+        if !(0.0..=1.0).contains(&ambient) {
+            return Err(RenderError::Rbf(format!(
+                "ambient light {ambient}: must be in [0, 1]"
+            )));
+        }
+        if samples == 0 {
+            return Err(RenderError::Rbf("shadow samples must be at least 1".into()));
+        }
+        Ok(RbfShadows {
+            light: light.map(|v| v / n),
+            ambient,
+            samples,
+        })
+    }
 }
 
 impl Marcher<'_> {
@@ -165,8 +238,23 @@ impl Marcher<'_> {
             return sum;
         }
         for pass in self.rbf.first_pass..self.rbf.first_pass.saturating_add(self.rbf.spp) {
-            let xi = white_offset(i, j, pass, self.rbf.seed);
-            let comp = self.march(&sc.hits, &mut sc.active, d, xi, (near, limit));
+            let comp = match &self.rbf.shadows {
+                Some(sh) => {
+                    let ray = (o, d);
+                    self.lit_pass(
+                        (&sc.hits, &mut sc.lit),
+                        ray,
+                        (i, j, pass),
+                        (near, limit),
+                        sh,
+                    )
+                }
+                None => {
+                    let xi = white_offset(i, j, pass, self.rbf.seed);
+                    let hits = (&sc.hits[..], &mut sc.lit.active);
+                    self.march(hits, d, xi, (near, limit), None)
+                }
+            };
             let (rgba, depth) = comp.pixel();
             for (s, v) in sum.rgba.iter_mut().zip(rgba) {
                 *s += f64::from(v);
@@ -179,48 +267,58 @@ impl Marcher<'_> {
         sum
     }
 
-    /// One pass along the ray `o + t·d` (t = view depth): samples at `t_k = (k + xi)·Δt`
-    /// over the crossed spheres `hits` (sorted by entry), each standing for the step around
-    /// it. A particle is summed at the samples between its entry and exit (where its sphere
-    /// holds them); its Gaussian there, `w·exp(−A·(m² + |d|²(t − t_c)²))` with `A = 4.5/r²`,
-    /// is evaluated once on entry and then stepped by two products a sample (the ratio of
-    /// consecutive values changes by a constant factor).
-    fn march(
+    /// The samples of one pass along a ray of direction `d` (`dd = |d|²`; t = view depth
+    /// for a camera ray): at `t_k = (k + xi)·Δt` over the crossed spheres `hits` (sorted by
+    /// entry), in order, handed to `visit(t, Δt, sums)` until it returns false. A particle is
+    /// summed at the samples between its entry and exit (where its sphere holds them); its
+    /// Gaussian there, `w·exp(−A·(m² + |d|²(t − t_c)²))` with `A = 4.5/r²`, is evaluated once
+    /// on entry and then stepped by two products a sample (the ratio of consecutive values
+    /// changes by a constant factor).
+    fn for_each_sample(
         &self,
         hits: &[RayHit],
         active: &mut Vec<Active>,
-        d: [f64; 3],
-        xi: f64,
-        (near, limit): (f64, f64),
-    ) -> Compositor {
-        let dd = d.iter().map(|v| v * v).sum::<f64>();
+        (dd, xi): (f64, f64),
+        mut visit: impl FnMut(f64, f64, &RbfSample) -> bool,
+    ) {
         let dt = self.step / dd.sqrt();
-        let mut comp = Compositor::between(near, limit);
+        let Some(first) = hits.first() else {
+            return;
+        };
         let last = hits
             .iter()
             .map(|h| h.t_out)
             .fold(f64::NEG_INFINITY, f64::max);
         let first_k = |t: f64| (t / dt - xi).ceil();
-        let mut k = first_k(hits[0].t_in);
+        let mut k = first_k(first.t_in);
         let mut next = 0;
+        // The earliest exit among the active particles: none leaves before it.
+        let mut exit = f64::INFINITY;
         active.clear();
         loop {
             let t = (k + xi) * dt;
             if t > last {
-                break;
+                return;
             }
             while next < hits.len() && hits[next].t_in <= t {
                 active.push(self.enter(&hits[next], next as u32, t, (dd, dt)));
+                exit = exit.min(hits[next].t_out);
                 next += 1;
             }
-            active.retain(|a| hits[a.hit as usize].t_out >= t);
+            if exit < t {
+                active.retain(|a| hits[a.hit as usize].t_out >= t);
+                exit = active
+                    .iter()
+                    .map(|a| hits[a.hit as usize].t_out)
+                    .fold(f64::INFINITY, f64::min);
+            }
             if active.is_empty() {
                 match hits.get(next) {
                     Some(h) => {
                         k = first_k(h.t_in).max(k + 1.0);
                         continue;
                     }
-                    None => break,
+                    None => return,
                 }
             }
             let mut s = RbfSample::default();
@@ -233,23 +331,114 @@ impl Marcher<'_> {
                 a.phi *= a.ratio;
                 a.ratio *= a.ratio_step;
             }
-            if s.density > 0.0 {
-                let (rgb, mu) = self.classify(&s);
-                let trans = (-mu * self.step).exp();
-                let a = 1.0 - trans;
-                comp.samples += 1;
-                let z = (t - 0.5 * dt, t + 0.5 * dt);
-                comp.add(
-                    [a * rgb[0], a * rgb[1], a * rgb[2], trans],
-                    z,
-                    self.params.min_transmittance,
-                );
-                if comp.done {
-                    break;
-                }
+            if s.density > 0.0 && !visit(t, dt, &s) {
+                return;
             }
             k += 1.0;
         }
+    }
+
+    /// One emission–absorption pass along the camera ray of direction `d`, composited front
+    /// to back (each sample standing for the step around it) between view depths `near` and
+    /// `limit`; with `shade`, each composited sample's view depth, the opacity accumulated
+    /// through it and its colour are recorded there.
+    fn march(
+        &self,
+        (hits, active): (&[RayHit], &mut Vec<Active>),
+        d: [f64; 3],
+        xi: f64,
+        (near, limit): (f64, f64),
+        mut shade: Option<&mut Vec<Shade>>,
+    ) -> Compositor {
+        let dd = d.iter().map(|v| v * v).sum::<f64>();
+        let mut comp = Compositor::between(near, limit);
+        if let Some(v) = shade.as_deref_mut() {
+            v.clear();
+        }
+        self.for_each_sample(hits, active, (dd, xi), |t, dt, s| {
+            let (rgb, mu) = self.classify(s);
+            let trans = (-mu * self.step).exp();
+            let a = 1.0 - trans;
+            comp.samples += 1;
+            let z = (t - 0.5 * dt, t + 0.5 * dt);
+            let min_t = self.params.min_transmittance;
+            comp.add([a * rgb[0], a * rgb[1], a * rgb[2], trans], z, min_t);
+            if let Some(v) = shade.as_deref_mut() {
+                v.push(Shade {
+                    t,
+                    opacity: 1.0 - comp.trans,
+                    rgb,
+                });
+            }
+            !comp.done
+        });
+        comp
+    }
+
+    /// The transmittance from world point `x` toward the light (direction `l`), by a
+    /// jittered march (offset `xi`) through the spheres the shadow ray crosses.
+    fn transmittance(&self, x: [f64; 3], l: [f64; 3], xi: f64, sc: &mut ShadowScratch) -> f64 {
+        sc.hits.clear();
+        let (hits, active) = (&mut sc.hits, &mut sc.active);
+        let range = (0.0, f64::INFINITY);
+        self.field
+            .bvh()
+            .for_each_on_ray(x, l, range, |h| hits.push(h));
+        hits.sort_unstable_by(|a, b| a.t_in.total_cmp(&b.t_in));
+        let mut tau = 0.0;
+        self.for_each_sample(hits, active, (1.0, xi), |_, _, s| {
+            tau += self.classify(s).1 * self.step;
+            tau < MAX_OPTICAL_DEPTH
+        });
+        (-tau).exp()
+    }
+
+    /// One pass with single scattering (Sec. 3.3.2): the pass's opacity as emission–
+    /// absorption composites it, and its colour from one shade point chosen with the
+    /// probability that light scatters there (sample k with `T_k·α_k` of the total
+    /// opacity, by the opacity accumulated through it: the paper's free-flight distance on
+    /// the Riemann sum), lit by the light as the shadow rays see it plus the ambient share.
+    fn lit_pass(
+        &self,
+        (hits, sc): (&[RayHit], &mut LitScratch),
+        (o, d): ([f64; 3], [f64; 3]),
+        (i, j, pass): (u32, u32, u32),
+        (near, limit): (f64, f64),
+        shadows: &RbfShadows,
+    ) -> Compositor {
+        let xi = white_offset(i, j, pass, self.rbf.seed);
+        let mut comp = self.march(
+            (hits, &mut sc.active),
+            d,
+            xi,
+            (near, limit),
+            Some(&mut sc.shade),
+        );
+        let Some(total) = sc.shade.last().map(|s| s.opacity) else {
+            return comp;
+        };
+        let pick = white_offset(i, j, pass, self.rbf.seed ^ PICK_STREAM) * total;
+        let k = sc
+            .shade
+            .partition_point(|s| s.opacity < pick)
+            .min(sc.shade.len() - 1);
+        let Shade { t, rgb, .. } = sc.shade[k];
+        let x = [0, 1, 2].map(|a| o[a] + t * d[a]);
+        let n = shadows.samples.max(1);
+        let lit: f64 = (0..n)
+            .map(|s| {
+                let xi = white_offset(
+                    i,
+                    j,
+                    pass.wrapping_mul(n).wrapping_add(s),
+                    self.rbf.seed ^ SHADOW_STREAM,
+                );
+                self.transmittance(x, shadows.light, xi, &mut sc.shadow)
+            })
+            .sum::<f64>()
+            / f64::from(n);
+        let light = shadows.ambient + (1.0 - shadows.ambient) * lit;
+        comp.color = rgb.map(|c| total * c * light);
         comp
     }
 
