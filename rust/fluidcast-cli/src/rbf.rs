@@ -6,7 +6,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
 use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions, DEFAULT_LEAF_SIZE};
-use fluidcast_render::{render_rbf, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
+use fluidcast_render::{render_rbf, Noise, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -18,6 +18,13 @@ pub enum Classification {
     /// Colour map each particle, then blend the colours (categorical attributes: classes
     /// keep their colours, mixing only where particles of different classes overlap).
     Pre,
+}
+
+/// The jitter's noise.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseArg {
+    Blue,
+    White,
 }
 
 /// Options of `--field rbf`.
@@ -41,6 +48,11 @@ pub struct RbfArgs {
     /// as 1/√N).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub spp: u32,
+    /// --field rbf: the jitter's noise: blue (a 64x64 blue-noise mask over the screen, a
+    /// golden-ratio sequence over passes: finer grain, faster convergence) or white
+    /// (independent offsets: error falls as 1/√--spp).
+    #[arg(long, value_enum, default_value = "blue")]
+    pub noise: NoiseArg,
     /// --field rbf: seed of the per-pixel jitter.
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
@@ -118,6 +130,10 @@ impl RbfArgs {
             seed: self.seed,
             step: self.rbf_step,
             shadows,
+            noise: match self.noise {
+                NoiseArg::Blue => Noise::Blue,
+                NoiseArg::White => Noise::White,
+            },
         })
     }
 }

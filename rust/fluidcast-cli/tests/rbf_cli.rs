@@ -74,6 +74,8 @@ fn rbf_options_change_the_image_as_they_say() {
         hidden.rgba.iter().all(|p| p[3] == 0.0),
         "radius 0 hides all"
     );
+    let white = run(&[&vel[..], &["--noise", "white"]].concat(), "white.exr");
+    assert!(max_diff(&post, &white) > 0.0, "other offsets");
     let spp = run(&[&vel[..], &["--spp", "4"]].concat(), "spp.exr");
     assert!(max_diff(&post, &spp) > 0.0);
     let density = run(&[], "density.exr");

@@ -18,6 +18,7 @@
 //!   tolerance it samples exactly the reference's positions.
 
 mod adaptive;
+pub mod bluenoise;
 mod crop;
 mod object_space;
 mod overlay;
@@ -43,7 +44,7 @@ pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, Sampli
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
-pub use rbf::{render_rbf, white_offset, RbfRenderParams, RbfShadows, MAX_RBF_STEPS};
+pub use rbf::{render_rbf, white_offset, Noise, RbfRenderParams, RbfShadows, MAX_RBF_STEPS};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 pub use tiles::{

@@ -44,6 +44,20 @@ pub struct RbfRenderParams {
     pub step: Option<f64>,
     /// Single scattering with shadows instead of emission–absorption ([`RbfShadows`]).
     pub shadows: Option<RbfShadows>,
+    /// Where the offsets come from.
+    pub noise: Noise,
+}
+
+/// The random offsets of the jittered march, the shade points and the shadow rays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Noise {
+    /// Blue noise over the screen, a golden-ratio sequence over passes
+    /// ([`crate::bluenoise`]): less visible noise in one pass, faster convergence.
+    #[default]
+    Blue,
+    /// Independent per pixel and pass (a hash): the plain Monte Carlo estimate, whose error
+    /// falls as 1/√passes.
+    White,
 }
 
 impl Default for RbfRenderParams {
@@ -54,6 +68,7 @@ impl Default for RbfRenderParams {
             seed: 0,
             step: None,
             shadows: None,
+            noise: Noise::Blue,
         }
     }
 }
@@ -83,7 +98,7 @@ pub fn white_offset(i: u32, j: u32, pass: u32, seed: u32) -> f64 {
 }
 
 #[inline]
-fn mix32(mut x: u32) -> u32 {
+pub(crate) fn mix32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
     x ^= x >> 15;
@@ -199,6 +214,16 @@ impl RbfShadows {
 }
 
 impl Marcher<'_> {
+    /// The offset in [0, 1) of pixel (i, j) in pass `pass` for random stream `stream`.
+    #[inline]
+    fn offset(&self, i: u32, j: u32, pass: u32, stream: u32) -> f64 {
+        let seed = self.rbf.seed ^ stream;
+        match self.rbf.noise {
+            Noise::Blue => crate::bluenoise::blue_offset(i, j, pass, seed),
+            Noise::White => white_offset(i, j, pass, seed),
+        }
+    }
+
     /// The pixels of tile `(columns, rows)`, row by row: its frustum's candidate spheres from
     /// the BVH once, then each ray's crossings among them.
     fn tile(&self, (columns, rows): (Range<u32>, Range<u32>), sc: &mut Scratch) -> Vec<PixelSum> {
@@ -250,7 +275,7 @@ impl Marcher<'_> {
                     )
                 }
                 None => {
-                    let xi = white_offset(i, j, pass, self.rbf.seed);
+                    let xi = self.offset(i, j, pass, 0);
                     let hits = (&sc.hits[..], &mut sc.lit.active);
                     self.march(hits, d, xi, (near, limit), None)
                 }
@@ -406,7 +431,7 @@ impl Marcher<'_> {
         (near, limit): (f64, f64),
         shadows: &RbfShadows,
     ) -> Compositor {
-        let xi = white_offset(i, j, pass, self.rbf.seed);
+        let xi = self.offset(i, j, pass, 0);
         let mut comp = self.march(
             (hits, &mut sc.active),
             d,
@@ -417,7 +442,7 @@ impl Marcher<'_> {
         let Some(total) = sc.shade.last().map(|s| s.opacity) else {
             return comp;
         };
-        let pick = white_offset(i, j, pass, self.rbf.seed ^ PICK_STREAM) * total;
+        let pick = self.offset(i, j, pass, PICK_STREAM) * total;
         let k = sc
             .shade
             .partition_point(|s| s.opacity < pick)
@@ -427,12 +452,7 @@ impl Marcher<'_> {
         let n = shadows.samples.max(1);
         let lit: f64 = (0..n)
             .map(|s| {
-                let xi = white_offset(
-                    i,
-                    j,
-                    pass.wrapping_mul(n).wrapping_add(s),
-                    self.rbf.seed ^ SHADOW_STREAM,
-                );
+                let xi = self.offset(i, j, pass.wrapping_mul(n).wrapping_add(s), SHADOW_STREAM);
                 self.transmittance(x, shadows.light, xi, &mut sc.shadow)
             })
             .sum::<f64>()
