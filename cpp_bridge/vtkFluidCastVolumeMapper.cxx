@@ -271,6 +271,8 @@ vtkFluidCastVolumeMapper::vtkFluidCastVolumeMapper()
 {
   this->SetKernel("cubic");
   this->SetIsoSurfaceField("colour");
+  this->SetField("csph");
+  this->SetRBFClassification("post");
 }
 
 //------------------------------------------------------------------------------
@@ -279,6 +281,8 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
   this->SetRadiusArray(nullptr);
   this->SetKernel(nullptr);
   this->SetAdapter(nullptr);
+  this->SetField(nullptr);
+  this->SetRBFClassification(nullptr);
   this->SetIsoSurfaceField(nullptr);
 }
 
@@ -481,7 +485,17 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.radius_array = (this->RadiusArray && this->SupportRadius <= 0) ? this->RadiusArray : "";
     s.radius_scale = this->RadiusScale;
     s.kernel = this->Kernel ? this->Kernel : "cubic";
-    s.field = "csph";
+    s.field = this->Field ? this->Field : "csph";
+    s.rbf_classification = this->RBFClassification ? this->RBFClassification : "post";
+    s.rbf_radius = this->RBFRadius;
+    s.samples_per_pixel = static_cast<uint32_t>(this->SamplesPerPixel);
+    s.progressive_passes = static_cast<uint32_t>(this->ProgressivePasses);
+    s.shadows = this->Shadows != 0;
+    for (int k = 0; k < 3; ++k)
+    {
+      s.light[k] = this->LightDirection[k];
+    }
+    s.shadow_ambient = this->ShadowAmbient;
     s.error_tolerance = this->ErrorTolerance;
     s.backend = this->Backend;
     s.adapter = this->Adapter ? this->Adapter : "";
@@ -775,6 +789,16 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "RadiusScale: " << this->RadiusScale << "\n";
   os << indent << "Kernel: " << (this->Kernel ? this->Kernel : "(none)") << "\n";
   os << indent << "ErrorTolerance: " << this->ErrorTolerance << "\n";
+  os << indent << "Field: " << (this->Field ? this->Field : "csph") << "\n";
+  os << indent << "RBFClassification: "
+     << (this->RBFClassification ? this->RBFClassification : "post") << "\n";
+  os << indent << "RBFRadius: " << this->RBFRadius << "\n";
+  os << indent << "SamplesPerPixel: " << this->SamplesPerPixel << "\n";
+  os << indent << "ProgressivePasses: " << this->ProgressivePasses << "\n";
+  os << indent << "Shadows: " << this->Shadows << "\n";
+  os << indent << "LightDirection: (" << this->LightDirection[0] << ", "
+     << this->LightDirection[1] << ", " << this->LightDirection[2] << ")\n";
+  os << indent << "ShadowAmbient: " << this->ShadowAmbient << "\n";
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
   os << indent << "MemoryLimit: " << this->MemoryLimit << " MiB\n";

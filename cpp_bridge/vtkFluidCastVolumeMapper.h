@@ -96,6 +96,41 @@ public:
 
   ///@{
   /**
+   * The field rendered, as `fluidcast render --field`: "csph" (default: the Shepard-normalised
+   * SPH field of the array), "sph" (the plain SPH sum), "density", or "rbf": the
+   * attribute-aware RBF field of Morrical et al. 2023. For "rbf" each particle is a truncated
+   * Gaussian reaching RBFRadius (world units; <= 0, the default: its support radius), weighted
+   * by the scalar opacity function at its value (the density map), coloured by
+   * RBFClassification "post" (default: blend the values, then colour them) or "pre" (colour
+   * each particle, then blend the colours); without an array the density itself is colour
+   * mapped. It is ray marched with blue-noise jitter on the CPU (Backend and ErrorTolerance do
+   * not apply), SamplesPerPixel passes per render; still renders of an unchanged view
+   * accumulate passes up to ProgressivePasses (ParaView's OSPRay "Samples Per Pixel" and
+   * "Progressive Passes"): render again to refine. With Shadows on, single scattering toward
+   * a directional light from world direction LightDirection (0,0,0, the default: from above
+   * and behind the camera), a fully shadowed point keeping ShadowAmbient of the light.
+   */
+  vtkSetStringMacro(Field);
+  vtkGetStringMacro(Field);
+  vtkSetStringMacro(RBFClassification);
+  vtkGetStringMacro(RBFClassification);
+  vtkSetMacro(RBFRadius, double);
+  vtkGetMacro(RBFRadius, double);
+  vtkSetClampMacro(SamplesPerPixel, int, 1, 1024);
+  vtkGetMacro(SamplesPerPixel, int);
+  vtkSetClampMacro(ProgressivePasses, int, 1, 65536);
+  vtkGetMacro(ProgressivePasses, int);
+  vtkSetMacro(Shadows, vtkTypeBool);
+  vtkGetMacro(Shadows, vtkTypeBool);
+  vtkBooleanMacro(Shadows, vtkTypeBool);
+  vtkSetVector3Macro(LightDirection, double);
+  vtkGetVector3Macro(LightDirection, double);
+  vtkSetClampMacro(ShadowAmbient, double, 0.0, 1.0);
+  vtkGetMacro(ShadowAmbient, double);
+  ///@}
+
+  ///@{
+  /**
    * Screen-space error tolerance E_I: the adaptive renderer keeps each pixel within about
    * E_I (0..1, per channel) of full-rate sampling. Default 0.004 (about 1/255); <= 0 samples
    * every depth at full rate.
@@ -292,6 +327,14 @@ protected:
   double RadiusScale = 1.0;
   char* Kernel = nullptr;
   double ErrorTolerance = 0.004;
+  char* Field = nullptr;
+  char* RBFClassification = nullptr;
+  double RBFRadius = 0.0;
+  int SamplesPerPixel = 1;
+  int ProgressivePasses = 1;
+  vtkTypeBool Shadows = 0;
+  double LightDirection[3] = { 0, 0, 0 };
+  double ShadowAmbient = 0.25;
   int Backend = AUTO;
   char* Adapter = nullptr;
   double MemoryLimit = 0.0;

@@ -312,6 +312,10 @@ struct Settings
   double supportRadius = 0;        // > 0: SupportRadius and --support-radius
   std::string kernel;              // non-empty: Kernel and --kernel
   int component = -1;              // >= 0: VectorMode COMPONENT and ARRAY:component
+  std::string field;               // non-empty: Field and --field
+  std::string classification;      // non-empty: RBFClassification and --classification
+  int passes = 1;                  // RBF: still renders accumulated (ProgressivePasses), --spp
+  bool shadows = false;            // RBF: Shadows and --shadows
   double Tolerance() const { return tolerance == "off" ? 0.0 : std::stod(tolerance); }
   /** Largest channel difference (of 255) allowed between the mapper and the CLI. */
   int Allowed() const
@@ -378,10 +382,24 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
     s.mapper->SetVectorMode(1);
     s.mapper->SetVectorComponent(st.component);
   }
+  if (!st.field.empty())
+  {
+    s.mapper->SetField(st.field.c_str());
+    s.mapper->SetProgressivePasses(st.passes);
+    s.mapper->SetShadows(st.shadows);
+    if (!st.classification.empty())
+    {
+      s.mapper->SetRBFClassification(st.classification.c_str());
+    }
+  }
   double b[6];
   s.mapper->GetBounds(b);
   SetupCamera(s, b);
-  s.win->Render();
+  // Still renders of one view: each adds a pass up to ProgressivePasses (RBF).
+  for (int k = 0; k < st.passes; ++k)
+  {
+    s.win->Render();
+  }
   p.mapper = Grab(s.win);
   p.mapperSamples = s.mapper->GetLastSamples();
   p.maxRadius = s.mapper->GetLastMaxRadius();
@@ -408,6 +426,18 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
   if (!st.kernel.empty())
   {
     cmd << " --kernel " << st.kernel;
+  }
+  if (!st.field.empty())
+  {
+    cmd << " --field " << st.field << " --spp " << st.passes;
+  }
+  if (!st.classification.empty())
+  {
+    cmd << " --classification " << st.classification;
+  }
+  if (st.shadows)
+  {
+    cmd << " --shadows";
   }
   std::cout << cmd.str() << "\n";
   if (std::system(cmd.str().c_str()) != 0)
@@ -514,6 +544,49 @@ int Properties(const std::string& data, const std::string& array, const std::str
   Settings component = base;
   component.component = 2;
   check("vector_component", component);
+  // The RBF field (Morrical et al. 2023) and its options; 8 still renders accumulate the
+  // passes the CLI's --spp 8 averages (the same passes: same offsets).
+  Settings rbf = base;
+  rbf.field = "rbf";
+  rbf.passes = 8;
+  const Pair post = check("rbf", rbf);
+  Settings pre = rbf;
+  pre.classification = "pre";
+  const Pair prePair = check("rbf_pre", pre);
+  // Against the RBF image too: a mapper that ignored RBFClassification would draw `post`.
+  const Diff preMoved = Compare(post.mapper, prePair.cli);
+  std::cout << "rbf_pre: post mapper vs pre CLI max " << preMoved.max << "/255\n";
+  if (preMoved.max <= 2)
+  {
+    std::cerr << "FAIL: rbf_pre: pre-classification does not change the image\n";
+    ++failures;
+  }
+  {
+    // Shadows: one shade point a pass, chosen by accumulated opacity, so a pixel whose
+    // opacity differs by a rounding between VTK's sampled tables and the CLI's nodes may pick
+    // another point in a pass: at most 0.5 % of the channels beyond 2/255.
+    Settings lit = rbf;
+    lit.shadows = true;
+    Pair p;
+    if (RenderPair(ug, data, array, out + "/rbf_shadows", cli, lit, p))
+    {
+      const Diff agree = Compare(p.mapper, p.cli);
+      const Diff moved = Compare(post.mapper, p.cli);
+      const size_t channels = static_cast<size_t>(3) * p.mapper.w * p.mapper.h;
+      std::cout << "rbf_shadows: mapper vs CLI max " << agree.max << "/255, " << agree.above2
+                << " channels above 2/255 of " << channels << "; unlit RBF mapper vs this CLI max "
+                << moved.max << "/255\n";
+      if (agree.above2 * 200 > channels || moved.max <= 2)
+      {
+        std::cerr << "FAIL: rbf_shadows: the mapper does not follow the CLI\n";
+        ++failures;
+      }
+    }
+    else
+    {
+      ++failures;
+    }
+  }
   Settings coarse;
   coarse.tolerance = "0.05";
   Pair p1;

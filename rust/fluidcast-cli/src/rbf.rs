@@ -113,10 +113,7 @@ impl RbfArgs {
         let shadows = if self.shadows {
             let light = match light {
                 Some(l) => parse_vector(l).context("--light")?,
-                None => {
-                    let f = camera.frame(2, 2)?;
-                    (f.up - f.forward * 0.5 + f.right * 0.25).to_array()
-                }
+                None => RbfShadows::default_light(&camera.frame(2, 2)?),
             };
             let s = RbfShadows::new(light, self.shadow_ambient, self.shadow_samples)
                 .context("--light/--shadow-ambient/--shadow-samples")?;

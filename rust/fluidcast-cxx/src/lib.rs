@@ -16,6 +16,8 @@
 //! Every entry point returns `Result`: C++ sees a `rust::Error` exception carrying the
 //! message. Panics are caught and turned into errors; none crosses the boundary.
 
+mod rbf;
+
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -69,6 +71,24 @@ mod ffi {
         /// Most memory (MiB) a render may take beyond the particles it holds: the view is
         /// rendered in screen tiles to stay within it, to the same image; <= 0: no limit.
         memory_limit_mib: f64,
+        /// `field` "rbf" (Morrical et al. 2023's field, the transfer function's opacity as
+        /// the density map): "post" (blend the attribute, then colour it) or "pre" (colour
+        /// each particle, then blend).
+        rbf_classification: String,
+        /// RBF radius (world units) of every particle; <= 0: each particle's support radius.
+        rbf_radius: f64,
+        /// RBF: jittered passes each render adds.
+        samples_per_pixel: u32,
+        /// RBF: the most passes averaged over renders of an unchanged view (camera, size,
+        /// transfer function, settings and data); at most `samples_per_pixel`: none.
+        progressive_passes: u32,
+        /// RBF: single scattering with volumetric shadows toward a directional light.
+        shadows: bool,
+        /// RBF shadows: the world direction toward the light; all 0: from above and behind
+        /// the camera (the CLI's default).
+        light: [f64; 3],
+        /// RBF shadows: the light a fully shadowed point still receives (0..1).
+        shadow_ambient: f64,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -295,11 +315,13 @@ fn backend_of(index: i32) -> Result<Backend, String> {
         .map_err(|e: fluidcast_backend::BackendError| e.to_string())
 }
 
-/// Particles built from the current data and settings, with their surface flags.
+/// Particles built from the current data and settings, with their surface flags, and the
+/// RBF field's state for them.
 struct Prepared {
     particles: Particles,
     surface: Vec<bool>,
     info: ffi::RenderInfo,
+    rbf: rbf::RbfState,
 }
 
 fn new_renderer() -> Box<Renderer> {
@@ -439,7 +461,9 @@ impl Renderer {
             s.kernel
                 .parse::<Kernel>()
                 .map_err(|e| format!("kernel: {e}"))?;
-            parse_field(&s.field)?;
+            if !is_rbf(&s.field) {
+                parse_field(&s.field)?;
+            }
             backend_of(s.backend)?;
             if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
                 return Err(format!(
@@ -655,6 +679,7 @@ impl Renderer {
                 particles,
                 surface,
                 info,
+                rbf: rbf::RbfState::default(),
             });
         }
         Ok(self.prepared.as_ref().expect("prepared above"))
@@ -710,7 +735,11 @@ impl Renderer {
                 width,
                 height,
                 kernel: s.kernel.parse().map_err(|e: String| e)?,
-                field: parse_field(&s.field)?,
+                field: if is_rbf(&s.field) {
+                    FieldKind::Csph
+                } else {
+                    parse_field(&s.field)?
+                },
                 adaptive: PlanParams {
                     tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
                     ..Default::default()
@@ -725,9 +754,31 @@ impl Renderer {
                     .map_err(|e| format!("{name}: {e}"))?;
             }
             let t = Instant::now();
-            self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             self.prepared()?;
             params.surfaces = self.surfaces_now(&s.scalars)?;
+            if is_rbf(&s.field) {
+                if s.memory_limit_mib > 0.0 {
+                    return Err(format!("{name}: the RBF field does not render in screen tiles (a memory limit) yet"));
+                }
+                let p = self
+                    .prepared
+                    .as_mut()
+                    .ok_or("fluidcast: particles missing")?;
+                let (image, stats) = p
+                    .rbf
+                    .render(&p.particles, (&camera, &tf), &params, &s)
+                    .map_err(|e| format!("{name}: {e}"))?;
+                let r = fluidcast_render::Rendered { image, stats };
+                return Ok(finish(
+                    &r,
+                    (rgba, depth),
+                    t,
+                    p,
+                    "",
+                    fluidcast_backend::Renderer::cpu().device(),
+                ));
+            }
+            self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
             };
@@ -776,22 +827,34 @@ impl Renderer {
             }
             .map_err(|e| format!("{name} ({device}): {e}"))?;
             let r = fluidcast_render::Rendered { image, stats };
-            let notes: Vec<&str> = [p.info.notes.as_str(), note]
-                .into_iter()
-                .filter(|n| !n.is_empty())
-                .collect();
-            for (k, px) in r.image.rgba.iter().enumerate() {
-                rgba[4 * k..4 * k + 4].copy_from_slice(px);
-            }
-            depth.copy_from_slice(&r.image.depth);
-            Ok(ffi::RenderInfo {
-                samples: r.stats.samples,
-                total_ms: t.elapsed().as_secs_f64() * 1e3,
-                notes: notes.join("\n"),
-                device,
-                ..p.info.clone()
-            })
+            Ok(finish(&r, (rgba, depth), t, p, note, device))
         })
+    }
+}
+
+/// Copies a frame into the caller's buffers and says what it did.
+fn finish(
+    r: &fluidcast_render::Rendered,
+    (rgba, depth): (&mut [f32], &mut [f32]),
+    started: Instant,
+    p: &Prepared,
+    note: &str,
+    device: String,
+) -> ffi::RenderInfo {
+    let notes: Vec<&str> = [p.info.notes.as_str(), note]
+        .into_iter()
+        .filter(|n| !n.is_empty())
+        .collect();
+    for (k, px) in r.image.rgba.iter().enumerate() {
+        rgba[4 * k..4 * k + 4].copy_from_slice(px);
+    }
+    depth.copy_from_slice(&r.image.depth);
+    ffi::RenderInfo {
+        samples: r.stats.samples,
+        total_ms: started.elapsed().as_secs_f64() * 1e3,
+        notes: notes.join("\n"),
+        device,
+        ..p.info.clone()
     }
 }
 
@@ -800,8 +863,13 @@ fn parse_field(s: &str) -> Result<FieldKind, String> {
         "" | "csph" => Ok(FieldKind::Csph),
         "sph" => Ok(FieldKind::Sph),
         "density" => Ok(FieldKind::Density),
-        other => Err(format!("unknown field '{other}' (csph, sph, density)")),
+        other => Err(format!("unknown field '{other}' (csph, sph, density, rbf)")),
     }
+}
+
+/// Whether `Settings::field` names the RBF field.
+fn is_rbf(field: &str) -> bool {
+    field.eq_ignore_ascii_case("rbf")
 }
 
 /// A transfer function from tables sampled evenly over [lo, hi] (what the C++ side reads off
@@ -871,6 +939,13 @@ mod tests {
             backend: 1,
             adapter: String::new(),
             memory_limit_mib: 0.0,
+            rbf_classification: "post".into(),
+            rbf_radius: 0.0,
+            samples_per_pixel: 1,
+            progressive_passes: 1,
+            shadows: false,
+            light: [0.0; 3],
+            shadow_ambient: 0.25,
         }
     }
 
@@ -1019,6 +1094,85 @@ mod tests {
         let mut again = vec![0f32; 4 * 40 * 30];
         r.render(w, h, &[], &mut again, &mut depth).unwrap();
         assert_eq!(again, volume, "no iso values: the volume");
+    }
+
+    #[test]
+    fn rbf_still_renders_accumulate_passes_up_to_the_limit() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let s = ffi::Settings {
+            field: "rbf".into(),
+            progressive_passes: 4,
+            ..settings()
+        };
+        r.configure(&s).unwrap();
+        let (w, h) = (40u32, 30u32);
+        let n = (w * h) as usize;
+        let frame = |r: &mut Renderer| {
+            let (mut rgba, mut depth) = (vec![0f32; 4 * n], vec![0f32; n]);
+            let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+            (rgba, info.samples)
+        };
+        let renders: Vec<(Vec<f32>, u64)> = (0..5).map(|_| frame(&mut r)).collect();
+        // The library's render of 1 and of 4 passes, from the bridge's own particles, camera
+        // and transfer function: the first render is one pass, the fourth the mean of four.
+        let p = &r.prepared.as_ref().unwrap().particles;
+        let (cam, tf) = (r.camera.clone().unwrap(), r.tf.clone().unwrap());
+        let field = fluidcast_rbf::RbfField::build(p, &tf, &Default::default()).unwrap();
+        let prm = RenderParams {
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        let lib = |spp| {
+            let rp = fluidcast_render::RbfRenderParams {
+                spp,
+                ..Default::default()
+            };
+            let img = fluidcast_render::render_rbf(&field, &cam, &tf, &prm, &rp)
+                .unwrap()
+                .0;
+            img.rgba.concat()
+        };
+        let close = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6);
+        assert!(
+            close(&renders[0].0, &lib(1)),
+            "first still render: one pass"
+        );
+        assert!(!close(&renders[0].0, &renders[3].0), "passes were added");
+        assert!(
+            close(&renders[3].0, &lib(4)),
+            "fourth: the mean of four passes"
+        );
+        assert!(renders[3].1 > 0);
+        assert_eq!(
+            renders[4].0, renders[3].0,
+            "the limit reached: the same image"
+        );
+        assert_eq!(renders[4].1, 0, "and no new samples");
+        // Another view starts again from one pass.
+        let mut c = r.camera.clone().unwrap();
+        c.azimuth(10.0);
+        r.camera = Some(c);
+        let moved = frame(&mut r);
+        assert!(moved.1 > 0 && moved.0 != renders[3].0);
+        // Bad RBF settings are errors naming them.
+        let bad = ffi::Settings {
+            rbf_classification: "sideways".into(),
+            ..s.clone()
+        };
+        r.configure(&bad).unwrap();
+        let (mut rgba, mut depth) = (vec![0f32; 4 * n], vec![0f32; n]);
+        let e = r.render(w, h, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(e.contains("classification"), "{e}");
+        let shadows = ffi::Settings {
+            shadows: true,
+            shadow_ambient: 3.0,
+            ..s
+        };
+        r.configure(&shadows).unwrap();
+        let e = r.render(w, h, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(e.contains("ambient"), "{e}");
     }
 
     #[test]

@@ -189,6 +189,13 @@ pub struct RbfShadows {
 }
 
 impl RbfShadows {
+    /// The light a view gets when none is given: from above and behind the camera (view
+    /// up, plus half the way back to the eye and a quarter to the right), so that shadows
+    /// fall down and away from the viewer.
+    pub fn default_light(frame: &ViewFrame) -> [f64; 3] {
+        (frame.up - frame.forward * 0.5 + frame.right * 0.25).to_array()
+    }
+
     /// Checks the values and makes the light direction unit length.
     pub fn new(light: [f64; 3], ambient: f64, samples: u32) -> Result<RbfShadows, RenderError> {
         let n = light.iter().map(|v| v * v).sum::<f64>().sqrt();
