@@ -312,6 +312,47 @@ void vtkFluidCastRepresentation::SetMemoryLimit(double mib)
   this->Mapper->SetMemoryLimit(mib);
 }
 
+void vtkFluidCastRepresentation::SetField(int field)
+{
+  static const char* const names[] = { "csph", "sph", "density", "rbf" };
+  this->Mapper->SetField(names[field >= 0 && field < 4 ? field : 0]);
+}
+
+void vtkFluidCastRepresentation::SetRBFClassification(int classification)
+{
+  this->Mapper->SetRBFClassification(classification == 1 ? "pre" : "post");
+}
+
+void vtkFluidCastRepresentation::SetRBFRadius(double r)
+{
+  this->Mapper->SetRBFRadius(r);
+}
+
+void vtkFluidCastRepresentation::SetSamplesPerPixel(int n)
+{
+  this->Mapper->SetSamplesPerPixel(n);
+}
+
+void vtkFluidCastRepresentation::SetProgressivePasses(int n)
+{
+  this->Mapper->SetProgressivePasses(n);
+}
+
+void vtkFluidCastRepresentation::SetShadows(int on)
+{
+  this->Mapper->SetShadows(on);
+}
+
+void vtkFluidCastRepresentation::SetLightDirection(double x, double y, double z)
+{
+  this->Mapper->SetLightDirection(x, y, z);
+}
+
+void vtkFluidCastRepresentation::SetShadowAmbient(double a)
+{
+  this->Mapper->SetShadowAmbient(a);
+}
+
 void vtkFluidCastRepresentation::SetBackend(int backend)
 {
   this->Mapper->SetBackend(backend);

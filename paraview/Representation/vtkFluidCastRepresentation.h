@@ -63,6 +63,23 @@ public:
 
   ///@{
   /**
+   * The field (Field: 0 CSPH, 1 SPH, 2 density, 3 RBF) and the RBF field's options, forwarded
+   * to vtkFluidCastVolumeMapper (RBFClassification: 0 post, 1 pre; LightDirection all 0:
+   * from above and behind the camera). With the RBF field, still renders of an unchanged
+   * view add SamplesPerPixel passes each, up to ProgressivePasses.
+   */
+  void SetField(int field);
+  void SetRBFClassification(int classification);
+  void SetRBFRadius(double r);
+  void SetSamplesPerPixel(int n);
+  void SetProgressivePasses(int n);
+  void SetShadows(int on);
+  void SetLightDirection(double x, double y, double z);
+  void SetShadowAmbient(double a);
+  ///@}
+
+  ///@{
+  /**
    * Forwarded to vtkFluidCastVolumeMapper: interactive renders (ParaView's, while the camera
    * moves) cast one ray per ImageSampleDistance² pixels to fit the interactive frame time,
    * up to MaximumImageSampleDistance; still renders are full resolution. Auto off: every

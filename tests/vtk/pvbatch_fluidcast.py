@@ -223,6 +223,23 @@ if properties:
     status = status or (0 if property_follows_cli("kernel", extra=("--kernel", "gaussian"))
                         else 1)
     display.FluidCastKernel = "Cubic spline"
+    # The RBF field: still renders of the view accumulate passes up to Progressive Passes,
+    # which then equal the CLI's --spp (the same passes), with and without shadows.
+    display.FluidCastField = "RBF"
+    display.FluidCastProgressivePasses = 8
+    for _ in range(8):
+        Render(view)
+    status = status or (0 if property_follows_cli("rbf", extra=(
+        "--field", "rbf", "--spp", "8")) else 1)
+    display.FluidCastShadows = 1
+    display.FluidCastLightDirection = [0.0, 1.0, 0.0]
+    for _ in range(8):
+        Render(view)
+    status = status or (0 if property_follows_cli("rbf_shadows", extra=(
+        "--field", "rbf", "--spp", "8", "--shadows", "--light", "0,1,0")) else 1)
+    display.FluidCastShadows = 0
+    display.FluidCastField = "CSPH"
+    display.FluidCastProgressivePasses = 1
     ColorBy(display, ("POINTS", array, "Z"))
     zlo, zhi = reader.PointData[array].GetRange(2)
     lut.RescaleTransferFunction(zlo, zhi)
