@@ -19,21 +19,31 @@ use crate::view::{parse_tolerance, SamplingArgs, ViewArgs};
 #[derive(clap::Args)]
 pub struct BenchArgs {
     /// A .vtu, .vtp, .pvtu, .pvtp, legacy .vtk file, or a .pvd series.
-    input: PathBuf,
+    pub(crate) input: PathBuf,
     #[command(flatten)]
-    particles: ParticleArgs,
+    pub(crate) particles: ParticleArgs,
     #[command(flatten)]
-    view: ViewArgs,
+    pub(crate) view: ViewArgs,
     /// Grid and optimisation options (--mode and --error-tolerance are ignored: the bench
     /// sweeps --tolerances).
     #[command(flatten)]
-    sampling: SamplingArgs,
+    pub(crate) sampling: SamplingArgs,
     /// Views on a camera orbit (azimuth steps of 360°/N about the first view).
     #[arg(long, default_value_t = 8)]
-    views: usize,
+    pub(crate) views: usize,
     /// Frames of a .pvd series, START:END[:STEP] (default: the first frame).
     #[arg(long)]
-    frames: Option<String>,
+    pub(crate) frames: Option<String>,
+    /// With --field rbf: the RBF options (the bench times, per frame, the BVH's build and
+    /// refit and the render, for each of --leaf-sizes).
+    #[command(flatten)]
+    pub(crate) rbf: crate::rbf::RbfArgs,
+    /// --field rbf: BVH leaf sizes to compare, comma-separated (default: --leaf-size).
+    #[arg(long)]
+    pub(crate) leaf_sizes: Option<String>,
+    /// --field rbf --shadows: the world direction toward the light, X,Y,Z.
+    #[arg(long, allow_hyphen_values = true)]
+    pub(crate) light: Option<String>,
     /// Error tolerances to compare, comma-separated; `off` is always included.
     #[arg(long, default_value = "0.001,0.004,0.01")]
     tolerances: String,
@@ -50,7 +60,7 @@ pub struct BenchArgs {
     perspective_grid: bool,
     /// Write the results as JSON here.
     #[arg(long)]
-    json: Option<PathBuf>,
+    pub(crate) json: Option<PathBuf>,
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -123,6 +133,9 @@ fn baseline_row(
 pub fn run(a: BenchArgs) -> Result<()> {
     if a.views == 0 {
         bail!("--views must be at least 1");
+    }
+    if a.particles.rbf() {
+        return crate::bench_rbf::run(&a);
     }
     let mut tols: Vec<Option<f64>> = vec![None];
     for t in a.tolerances.split(',').filter(|t| !t.trim().is_empty()) {

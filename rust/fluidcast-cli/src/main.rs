@@ -13,6 +13,7 @@ macro_rules! out {
 }
 
 mod bench;
+mod bench_rbf;
 mod info;
 mod options;
 mod probe;

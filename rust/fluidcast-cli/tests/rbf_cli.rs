@@ -125,3 +125,52 @@ fn rbf_refuses_what_it_does_not_do() {
         assert!(err.contains(says), "{extra:?}: {err}");
     }
 }
+
+/// `fluidcast bench --field rbf`: a row per frame and leaf size, with the build, refit and
+/// render times and memory; larger leaves hold fewer boxes.
+#[test]
+fn rbf_bench_reports_build_refit_render_and_memory_per_leaf_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let js = dir.path().join("b.json");
+    let sample = common::sample();
+    let args = [
+        "bench",
+        sample.to_str().unwrap(),
+        "--field",
+        "rbf",
+        "--array",
+        "velocity",
+        "--size",
+        "64x48",
+        "--views",
+        "2",
+        "--leaf-sizes",
+        "1,16",
+        "--json",
+        js.to_str().unwrap(),
+    ];
+    let (code, out, err) = common::run(&args);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("refit"), "{out}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&js).unwrap()).unwrap();
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        assert_eq!(r["render_ms"].as_array().unwrap().len(), 2, "{r}");
+        assert!(
+            r["build_ms"].as_f64().unwrap() >= 0.0 && r["samples_per_view"].as_u64().unwrap() > 0
+        );
+    }
+    let bvh = |k: usize| rows[k]["bvh_bytes_per_particle"].as_f64().unwrap();
+    assert!(
+        bvh(1) < 0.6 * bvh(0),
+        "leaf 16 {} vs leaf 1 {}",
+        bvh(1),
+        bvh(0)
+    );
+    let bad = [&args[..10], &["--leaf-sizes", "0"][..]].concat();
+    let (code, _, err) = common::run(&bad);
+    assert_ne!(code, Some(0));
+    assert!(err.contains("--leaf-sizes"), "{err}");
+}
