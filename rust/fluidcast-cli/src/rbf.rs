@@ -158,7 +158,7 @@ pub fn render_frame(
     tf: &mut TransferFunction,
     params: &RenderParams,
     (opts, rbf, auto_range): (&RbfOptions, &RbfRenderParams, bool),
-    refit: bool,
+    (refit, gpu): (bool, Option<&fluidcast_backend::Gpu>),
 ) -> Result<(Image, RenderStats, usize)> {
     let t = Instant::now();
     let mut field = RbfField::build(particles, tf, opts)?;
@@ -181,7 +181,10 @@ pub fn render_frame(
             .clone()
             .with_range(0.0, if top > 0.0 { top } else { 1.0 })?;
     }
-    let (image, mut stats) = render_rbf(&field, camera, tf, params, rbf)?;
+    let (image, mut stats) = match gpu {
+        Some(g) => g.render_rbf(&field, camera, tf, params, rbf)?,
+        None => render_rbf(&field, camera, tf, params, rbf)?,
+    };
     stats.stages.splice(0..0, stages);
     Ok((image, stats, field.memory_bytes()))
 }

@@ -514,8 +514,11 @@ fn rbf_setup(a: &RenderArgs, gpu: bool) -> Result<Option<fluidcast_rbf::RbfOptio
     if !a.particles.rbf() {
         return Ok(None);
     }
-    if a.sampling.mode.is_some() || gpu {
-        bail!("--field rbf is drawn by its own ray marcher, on the CPU (no GPU path yet): drop --mode and --backend gpu");
+    if a.sampling.mode.is_some() {
+        bail!("--field rbf is drawn by its own ray marcher (on the CPU, or with --backend gpu on the GPU): drop --mode");
+    }
+    if gpu && a.rbf.shadows {
+        bail!("--field rbf --shadows: the GPU does not draw shadows yet; drop --backend gpu");
     }
     if a.split.memory_limit.is_some() || a.split.tiles.is_some() {
         bail!("--field rbf does not render in screen tiles yet: drop --memory-limit and --tiles");
@@ -561,7 +564,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
         eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
     }
     let rbf = rbf_setup(&a, gpu)?;
-    let mode = if rbf.is_some() { Mode::Reference } else { mode };
+    // The RBF field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
+    let mode = match (&rbf, a.rbf.shadows) {
+        (Some(_), false) => Mode::Adaptive,
+        (Some(_), true) => Mode::Reference,
+        (None, _) => mode,
+    };
     let recipe = Recipe {
         spec: &spec,
         surface: &a.surface,
@@ -610,8 +618,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 let rp = a.rbf.render_params(cam, a.surface.light.as_deref())?;
                 let how = (opts, &rp, auto_range);
                 let refit = a.stats.is_some();
+                let on = renderer.gpu();
                 let (image, stats, bytes) =
-                    crate::rbf::render_frame(&particles, cam, &mut tf, &params, how, refit)
+                    crate::rbf::render_frame(&particles, cam, &mut tf, &params, how, (refit, on))
                         .with_context(|| format!("rendering {}", file.display()))?;
                 rbf_bytes = Some(bytes);
                 (image, stats)

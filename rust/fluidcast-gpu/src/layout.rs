@@ -5,7 +5,8 @@
 
 use bytemuck::{Pod, Zeroable};
 use fluidcast_grid::Cell;
-use fluidcast_render::RenderParams;
+use fluidcast_rbf::Colouring;
+use fluidcast_render::{Noise, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{TransferFunction, ViewFrame};
 
@@ -195,6 +196,71 @@ pub(crate) fn wgsl_prelude() -> String {
     s
 }
 
+/// rbf.wgsl's uniform `R` (same field order).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub(crate) struct RbfUniform {
+    pub(crate) root_lo: [f32; 4],
+    pub(crate) root_hi: [f32; 4],
+    pub(crate) step: f32,
+    pub(crate) first_leaf: u32,
+    pub(crate) n_slots: u32,
+    pub(crate) leaf_size: u32,
+    pub(crate) spp: u32,
+    pub(crate) first_pass: u32,
+    pub(crate) seed: u32,
+    pub(crate) colouring: u32,
+    pub(crate) noise: u32,
+    pub(crate) query_bound: u32,
+    pub(crate) pad: [u32; 2],
+}
+
+const _: () = assert!(std::mem::size_of::<RbfUniform>() == 80);
+
+/// The code of an RBF colouring (`RBF_*`): its index in [`Colouring::ALL`].
+pub(crate) fn colouring_code(c: Colouring) -> u32 {
+    Colouring::ALL.iter().position(|&x| x == c).unwrap_or(0) as u32
+}
+
+/// The code of a noise (`NOISE_*`).
+pub(crate) fn noise_code(n: Noise) -> u32 {
+    match n {
+        Noise::Blue => 0,
+        Noise::White => 1,
+    }
+}
+
+/// Constants rbf.wgsl shares with the CPU renderer, written from the Rust ones: colouring
+/// and noise codes, the offset hash, the blue-noise mask's side and temporal step, and the
+/// Gaussian's truncation in standard deviations.
+pub(crate) fn rbf_prelude() -> String {
+    let mut s = String::new();
+    for c in Colouring::ALL {
+        s += &format!(
+            "const {}: u32 = {}u;\n",
+            wgsl_name("RBF", c.name()),
+            colouring_code(c)
+        );
+    }
+    for (n, name) in [(Noise::Blue, "BLUE"), (Noise::White, "WHITE")] {
+        s += &format!("const NOISE_{name}: u32 = {}u;\n", noise_code(n));
+    }
+    s += &format!(
+        "const HASH_SEED: u32 = {}u;\nconst HASH_IN: u32 = {}u;\nconst HASH_MUL0: u32 = {}u;\nconst HASH_MUL1: u32 = {}u;\n",
+        fluidcast_render::HASH_SEED,
+        fluidcast_render::HASH_IN,
+        fluidcast_render::HASH_MUL[0],
+        fluidcast_render::HASH_MUL[1]
+    );
+    s += &format!(
+        "const BLUE_SIDE: u32 = {}u;\nconst GOLDEN: f32 = {:?};\nconst SIGMAS: f32 = {:?};\n",
+        fluidcast_render::bluenoise::MASK_SIDE,
+        fluidcast_render::bluenoise::GOLDEN as f32,
+        fluidcast_rbf::SIGMAS as f32
+    );
+    s
+}
+
 pub(crate) fn frame_uniform(
     frame: &ViewFrame,
     params: &RenderParams,
@@ -263,7 +329,13 @@ mod tests {
 
     /// The WGSL struct `name`: its size and its members' offsets, as naga lays them out.
     fn wgsl_layout(name: &str) -> (u32, Vec<(String, u32)>) {
-        let src = format!("{}{}", wgsl_prelude(), include_str!("shaders/common.wgsl"));
+        let src = format!(
+            "{}{}{}{}",
+            wgsl_prelude(),
+            rbf_prelude(),
+            include_str!("shaders/common.wgsl"),
+            include_str!("shaders/rbf.wgsl")
+        );
         let module = naga::front::wgsl::parse_str(&src).unwrap();
         let mut layouter = naga::proc::Layouter::default();
         layouter.update(module.to_ctx()).unwrap();
@@ -348,6 +420,24 @@ mod tests {
             ]
         );
         same_layout!(GpuCell, "Cell", [z, start, unique_end, end, bundle]);
+        same_layout!(
+            RbfUniform,
+            "Rbf",
+            [
+                root_lo,
+                root_hi,
+                step,
+                first_leaf,
+                n_slots,
+                leaf_size,
+                spp,
+                first_pass,
+                seed,
+                colouring,
+                noise,
+                query_bound
+            ]
+        );
         same_layout!(
             GpuSpan,
             "Span",

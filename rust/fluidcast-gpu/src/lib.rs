@@ -35,6 +35,7 @@ mod layout;
 mod pass;
 mod plan;
 mod raycast;
+mod rbf;
 mod sort;
 
 use std::collections::HashMap;
@@ -94,6 +95,7 @@ struct Pipelines {
     analyse: Pipe,
     greedy: Pipe,
     raycast: Pipe,
+    rbf: Pipe,
 }
 
 impl Pipelines {
@@ -108,6 +110,12 @@ impl Pipelines {
         let grid = staged("grid", include_str!("shaders/grid.wgsl"))?;
         let plan = staged("plan", include_str!("shaders/plan.wgsl"))?;
         let raycast = staged("raycast", include_str!("shaders/raycast.wgsl"))?;
+        let rbf_src = format!(
+            "{}{}",
+            layout::rbf_prelude(),
+            include_str!("shaders/rbf.wgsl")
+        );
+        let rbf = staged("rbf", &rbf_src)?;
         let scan = Shader::new(device, "scan", include_str!("shaders/scan.wgsl"))?;
         let sort = Shader::new(device, "sort", include_str!("shaders/sort.wgsl"))?;
         Ok(Pipelines {
@@ -124,6 +132,7 @@ impl Pipelines {
             analyse: plan.pipe(device, "analyse"),
             greedy: plan.pipe(device, "greedy"),
             raycast: raycast.pipe(device, "main"),
+            rbf: rbf.pipe(device, "main"),
         })
     }
 }

@@ -259,6 +259,22 @@ impl ClusterBvh {
         self.leaf_size
     }
 
+    /// The boxes, heap-indexed (entry 0 unused, node k's children 2k and 2k + 1), for a
+    /// traversal elsewhere (the GPU's).
+    pub fn boxes(&self) -> &[Aabb] {
+        &self.boxes
+    }
+
+    /// The node index of the first leaf (cluster 0); leaves hold `leaf_size` slots each.
+    pub fn first_leaf(&self) -> usize {
+        self.first_leaf
+    }
+
+    /// Per slot, centre and radius (world units).
+    pub fn spheres(&self) -> &[[f32; 4]] {
+        &self.spheres
+    }
+
     /// The box of every visible particle (empty when none is).
     pub fn bounds(&self) -> Aabb {
         self.boxes[1]

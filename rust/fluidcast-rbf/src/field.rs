@@ -44,6 +44,9 @@ pub enum Colouring {
 }
 
 impl Colouring {
+    /// Every colouring, in the order of their codes on the GPU (`RBF_*` in WGSL).
+    pub const ALL: [Colouring; 3] = [Colouring::Post, Colouring::Pre, Colouring::Density];
+
     pub fn name(self) -> &'static str {
         match self {
             Colouring::Post => "post",

@@ -17,7 +17,7 @@ const N: usize = MASK_SIDE * MASK_SIDE;
 /// Standard deviation of the energy filter (pixels), Ulichney's 1.5.
 const SIGMA: f64 = 1.5;
 /// 1/φ, the golden ratio's fraction: the temporal step of each pixel's offset.
-const GOLDEN: f64 = 0.618_033_988_749_894_9;
+pub const GOLDEN: f64 = 0.618_033_988_749_894_9;
 
 /// The mask's ranks as values in [0, 1): `(rank + ½)/4096`, row-major, one per pixel.
 pub fn mask() -> &'static [f32] {

@@ -44,7 +44,10 @@ pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, Sampli
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
-pub use rbf::{render_rbf, white_offset, Noise, RbfRenderParams, RbfShadows, MAX_RBF_STEPS};
+pub use rbf::{
+    mix32, rbf_step_checked, render_rbf, white_offset, Noise, RbfRenderParams, RbfShadows, HASH_IN,
+    HASH_MUL, HASH_SEED, MAX_RBF_STEPS,
+};
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};
 pub use tiles::{

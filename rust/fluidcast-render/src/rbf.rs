@@ -86,23 +86,30 @@ impl RbfRenderParams {
     }
 }
 
+/// The constants of [`white_offset`]'s hash: the seed's offset, the multiplier of each
+/// number hashed in, and "lowbias32"'s two multipliers (the GPU's copy is written from these).
+pub const HASH_SEED: u32 = 0x9e37_79b9;
+pub const HASH_IN: u32 = 0x85eb_ca6b;
+pub const HASH_MUL: [u32; 2] = [0x7feb_352d, 0x846c_a68b];
+
 /// A random fraction in [0, 1) for pixel (i, j) in pass `pass` (a 32-bit integer hash,
 /// "lowbias32", of the four numbers): independent between pixels and passes.
 #[inline]
 pub fn white_offset(i: u32, j: u32, pass: u32, seed: u32) -> f64 {
-    let mut h = seed ^ 0x9e37_79b9;
+    let mut h = seed ^ HASH_SEED;
     for v in [i, j, pass] {
-        h = mix32(h ^ v.wrapping_mul(0x85eb_ca6b));
+        h = mix32(h ^ v.wrapping_mul(HASH_IN));
     }
     f64::from(h >> 8) / f64::from(1u32 << 24)
 }
 
+/// "lowbias32" (Chris Wellons' integer hash).
 #[inline]
-pub(crate) fn mix32(mut x: u32) -> u32 {
+pub fn mix32(mut x: u32) -> u32 {
     x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
+    x = x.wrapping_mul(HASH_MUL[0]);
     x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
+    x = x.wrapping_mul(HASH_MUL[1]);
     x ^ (x >> 16)
 }
 
@@ -169,8 +176,8 @@ struct Scratch {
 
 /// Seeds (xor-ed into the user's) of the random streams beside the march's offsets: the
 /// shade point's choice and the shadow rays' offsets.
-const PICK_STREAM: u32 = 0x5bd1_e995;
-const SHADOW_STREAM: u32 = 0x27d4_eb2f;
+pub const PICK_STREAM: u32 = 0x5bd1_e995;
+pub const SHADOW_STREAM: u32 = 0x27d4_eb2f;
 
 /// A shadow ray stops once its optical depth passes this (transmittance below 2e-9).
 const MAX_OPTICAL_DEPTH: f64 = 20.0;
@@ -529,6 +536,30 @@ fn tile_planes(frame: &ViewFrame, (columns, rows): (&Range<u32>, &Range<u32>)) -
     })
 }
 
+/// The world step of `rbf` for `field` (see [`RbfRenderParams::step_for`]), refused when a
+/// ray across the data would take more than [`MAX_RBF_STEPS`] samples; `None` when no
+/// particle is visible.
+pub fn rbf_step_checked(
+    field: &RbfField,
+    params: &RenderParams,
+    rbf: &RbfRenderParams,
+) -> Result<Option<f64>, RenderError> {
+    let Some(step) = rbf.step_for(field, params) else {
+        return Ok(None);
+    };
+    let b = field.bvh().bounds();
+    let extent = (0..3)
+        .map(|a| f64::from(b.hi[a] - b.lo[a]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    if !(step.is_finite() && step > 0.0) || extent / step > MAX_RBF_STEPS {
+        return Err(RenderError::Rbf(format!(
+            "a step of {step:e} world units over data {extent:e} across would take more than {MAX_RBF_STEPS:e} samples a ray: raise the step (or lower the sampling scale)"
+        )));
+    }
+    Ok(Some(step))
+}
+
 /// Renders the RBF field `field` (built with `tf`, see [`RbfField::build`]): each pixel the
 /// mean of `rbf.spp` jittered passes. Uses `params`' size, minimum transmittance, sampling
 /// scale and per-pixel depth range; refuses iso-surfaces and lighting.
@@ -555,19 +586,9 @@ pub fn render_rbf(
         ..Default::default()
     };
     let mut image = Image::new(w, h);
-    let Some(step) = rbf.step_for(field, params) else {
+    let Some(step) = rbf_step_checked(field, params, rbf)? else {
         return Ok((image, stats)); // nothing visible
     };
-    let b = field.bvh().bounds();
-    let extent = (0..3)
-        .map(|a| f64::from(b.hi[a] - b.lo[a]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    if !(step.is_finite() && step > 0.0) || extent / step > MAX_RBF_STEPS {
-        return Err(RenderError::Rbf(format!(
-            "a step of {step:e} world units over data {extent:e} across would take more than {MAX_RBF_STEPS:e} samples a ray: raise the step (or lower the sampling scale)"
-        )));
-    }
     let marcher = Marcher {
         field,
         tf: TfLookup::new(tf),

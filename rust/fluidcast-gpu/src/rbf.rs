@@ -1,0 +1,165 @@
+//! The RBF field's emission–absorption passes on the GPU (rbf.wgsl), the mirror of
+//! [`fluidcast_render::render_rbf`] without shadows: the BVH built on the host
+//! ([`fluidcast_rbf::ClusterBvh`]) is uploaded as it is (heap-ordered boxes, Hilbert-ordered
+//! spheres) and traversed in compute, one point range query per sample. wgpu has no
+//! ray-tracing pipelines for custom primitives, so there are no RT cores here: the traversal
+//! is the shader's own stack walk.
+
+use std::time::Instant;
+
+use fluidcast_image::Image;
+use fluidcast_rbf::RbfField;
+use fluidcast_render::{
+    ms, rbf_step_checked, refuse_surfaces, validate, RbfRenderParams, RenderError, RenderParams,
+    RenderStats,
+};
+use fluidcast_view::{Camera, TransferFunction};
+
+use crate::layout::{colouring_code, frame_uniform, noise_code, RbfUniform};
+use crate::{cast, push_stage, Gpu, GpuError, RW};
+
+/// Refuses what the GPU's RBF passes do not draw yet.
+fn refuse(params: &RenderParams, rbf: &RbfRenderParams) -> Result<(), GpuError> {
+    let no = |what: &str| {
+        GpuError::Render(RenderError::Rbf(format!(
+            "the GPU's RBF field does not draw {what} yet; render with --backend cpu"
+        )))
+    };
+    if rbf.shadows.is_some() {
+        return Err(no("shadows"));
+    }
+    if params.depth_limit.is_some() || params.depth_near.is_some() {
+        return Err(no("depth limits (opaque geometry, cropping)"));
+    }
+    if rbf.spp == 0 {
+        return Err(RenderError::Rbf("samples per pixel must be at least 1".into()).into());
+    }
+    Ok(())
+}
+
+impl Gpu {
+    /// Renders `field` as [`fluidcast_render::render_rbf`] does (emission–absorption, the
+    /// same passes and offsets), in single precision on the GPU.
+    pub fn render_rbf(
+        &self,
+        field: &RbfField,
+        camera: &Camera,
+        tf: &TransferFunction,
+        params: &RenderParams,
+        rbf: &RbfRenderParams,
+    ) -> Result<(Image, RenderStats), GpuError> {
+        validate(params)?;
+        refuse_surfaces(params, "the GPU's RBF field")?;
+        refuse(params, rbf)?;
+        let points = tf.colors.len().max(tf.opacity.len());
+        if points > crate::MAX_TF_POINTS {
+            return Err(GpuError::TransferFunction(points));
+        }
+        let _frame_lock = self.frame_lock.lock().expect("frame lock");
+        let (w, h) = (params.width, params.height);
+        let frame = camera.frame(w, h).map_err(RenderError::from)?;
+        let bvh = field.bvh();
+        let mut stats = RenderStats {
+            particles: bvh.len(),
+            width: w,
+            height: h,
+            ..Default::default()
+        };
+        let mut image = Image::new(w, h);
+        let Some(step) = rbf_step_checked(field, params, rbf)? else {
+            return Ok((image, stats));
+        };
+        let t0 = Instant::now();
+        let n = bvh.len();
+        let root = bvh.bounds();
+        let u = RbfUniform {
+            root_lo: [root.lo[0], root.lo[1], root.lo[2], 0.0],
+            root_hi: [root.hi[0], root.hi[1], root.hi[2], 0.0],
+            step: step as f32,
+            first_leaf: bvh.first_leaf() as u32,
+            n_slots: n as u32,
+            leaf_size: bvh.leaf_size() as u32,
+            spp: rbf.spp,
+            first_pass: rbf.first_pass,
+            seed: rbf.seed,
+            colouring: colouring_code(field.colouring()),
+            noise: noise_code(rbf.noise),
+            // Every node and every particle: the most one point query can visit.
+            query_bound: (bvh.boxes().len() + n).min(u32::MAX as usize / 2) as u32,
+            pad: [0; 2],
+        };
+        let boxes: Vec<[f32; 4]> = bvh
+            .boxes()
+            .iter()
+            .flat_map(|b| {
+                [
+                    [b.lo[0], b.lo[1], b.lo[2], 0.0],
+                    [b.hi[0], b.hi[1], b.hi[2], 0.0],
+                ]
+            })
+            .collect();
+        let attrs: Vec<[f32; 4]> = (0..n as u32)
+            .map(|s| {
+                let (w, t) = field.weight_theta(s);
+                [w, t[0], t[1], t[2]]
+            })
+            .collect();
+        let fu = frame_uniform(&frame, params, tf, n, self.loop_limit);
+        let frame_buf = self.frame_buffer(&fu);
+        let rbf_buf = self.buffer(
+            "rbf",
+            std::mem::size_of::<RbfUniform>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            Some(bytemuck::bytes_of(&u)),
+        );
+        let tf_buf = self.tf_buffer(tf);
+        let boxes = self.upload("rbf boxes", &boxes);
+        let spheres = self.upload("rbf spheres", bvh.spheres());
+        let attrs = self.upload("rbf attributes", &attrs);
+        let blue = self.upload("blue noise", fluidcast_render::bluenoise::mask());
+        let n_px = u64::from(w) * u64::from(h);
+        let rgba = self.buffer("rgba", 16 * n_px, RW, None);
+        let depth = self.buffer("depth", 4 * n_px, RW, None);
+        let guard = self.upload("guard", &[0u32; 4]);
+        push_stage(&mut stats, "upload", ms(t0));
+        let binds = [
+            ("P", &frame_buf),
+            ("tf", &tf_buf),
+            ("R", &rbf_buf),
+            ("boxes", &boxes),
+            ("spheres", &spheres),
+            ("attrs", &attrs),
+            ("blue", &blue),
+            ("image", &rgba),
+            ("depth", &depth),
+            ("guard", &guard),
+        ];
+        let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
+        let t = Instant::now();
+        self.submit_pass(&mut timer, "gpu_raycast", |pass| {
+            self.dispatch_2d(
+                pass,
+                &self.pipes.rbf,
+                &binds,
+                (w.div_ceil(8), h.div_ceil(8)),
+            )
+        })?;
+        let parts = [(&rgba, 16 * n_px), (&depth, 4 * n_px), (&guard, 4)];
+        let guarded = self.fetch_with(&parts, |got| {
+            image.rgba = cast(got[0]);
+            image.depth = cast::<f32>(got[1]);
+            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
+                *z = f32::INFINITY;
+            }
+            cast::<u32>(got[2])[0] != 0
+        })?;
+        push_stage(&mut stats, "raycast", ms(t));
+        if guarded {
+            return Err(self.loop_limit_error("the RBF field's point queries"));
+        }
+        self.finish_timers(&timer, &mut stats)?;
+        push_stage(&mut stats, "total", ms(t0));
+        stats.gpu_memory_bytes = self.memory_bytes();
+        Ok((image, stats))
+    }
+}
