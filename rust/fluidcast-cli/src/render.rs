@@ -510,15 +510,12 @@ pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
 }
 
 /// `--field rbf`: the field's options, after refusing what its renderer does not do.
-fn rbf_setup(a: &RenderArgs, gpu: bool) -> Result<Option<fluidcast_rbf::RbfOptions>> {
+fn rbf_setup(a: &RenderArgs) -> Result<Option<fluidcast_rbf::RbfOptions>> {
     if !a.particles.rbf() {
         return Ok(None);
     }
     if a.sampling.mode.is_some() {
         bail!("--field rbf is drawn by its own ray marcher (on the CPU, or with --backend gpu on the GPU): drop --mode");
-    }
-    if gpu && a.rbf.shadows {
-        bail!("--field rbf --shadows: the GPU does not draw shadows yet; drop --backend gpu");
     }
     if a.split.memory_limit.is_some() || a.split.tiles.is_some() {
         bail!("--field rbf does not render in screen tiles yet: drop --memory-limit and --tiles");
@@ -563,13 +560,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         };
         eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
     }
-    let rbf = rbf_setup(&a, gpu)?;
+    let rbf = rbf_setup(&a)?;
     // The RBF field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
-    let mode = match (&rbf, a.rbf.shadows) {
-        (Some(_), false) => Mode::Adaptive,
-        (Some(_), true) => Mode::Reference,
-        (None, _) => mode,
-    };
+    let mode = if rbf.is_some() { Mode::Adaptive } else { mode };
     let recipe = Recipe {
         spec: &spec,
         surface: &a.surface,

@@ -104,7 +104,6 @@ fn rbf_refuses_what_it_does_not_do() {
     let out = dir.path().join("x.png");
     for (extra, says) in [
         (&["--mode", "reference"][..], "own ray marcher"),
-        (&["--backend", "gpu", "--shadows"][..], "shadows"),
         (&["--tiles", "4"][..], "screen tiles"),
         (&["--iso", "0.5"][..], "iso-surfaces"),
         (

@@ -212,10 +212,14 @@ pub(crate) struct RbfUniform {
     pub(crate) colouring: u32,
     pub(crate) noise: u32,
     pub(crate) query_bound: u32,
-    pub(crate) pad: [u32; 2],
+    pub(crate) shadows: u32,
+    pub(crate) shadow_samples: u32,
+    pub(crate) light: [f32; 4],
+    pub(crate) ambient: f32,
+    pub(crate) pad: [u32; 3],
 }
 
-const _: () = assert!(std::mem::size_of::<RbfUniform>() == 80);
+const _: () = assert!(std::mem::size_of::<RbfUniform>() == 112);
 
 /// The code of an RBF colouring (`RBF_*`): its index in [`Colouring::ALL`].
 pub(crate) fn colouring_code(c: Colouring) -> u32 {
@@ -251,6 +255,12 @@ pub(crate) fn rbf_prelude() -> String {
         fluidcast_render::HASH_IN,
         fluidcast_render::HASH_MUL[0],
         fluidcast_render::HASH_MUL[1]
+    );
+    s += &format!(
+        "const PICK_STREAM: u32 = {}u;\nconst SHADOW_STREAM: u32 = {}u;\nconst MAX_OPTICAL_DEPTH: f32 = {:?};\n",
+        fluidcast_render::PICK_STREAM,
+        fluidcast_render::SHADOW_STREAM,
+        fluidcast_render::MAX_OPTICAL_DEPTH as f32
     );
     s += &format!(
         "const BLUE_SIDE: u32 = {}u;\nconst GOLDEN: f32 = {:?};\nconst SIGMAS: f32 = {:?};\n",
@@ -435,7 +445,11 @@ mod tests {
                 seed,
                 colouring,
                 noise,
-                query_bound
+                query_bound,
+                shadows,
+                shadow_samples,
+                light,
+                ambient
             ]
         );
         same_layout!(

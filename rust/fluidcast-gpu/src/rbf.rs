@@ -1,5 +1,5 @@
-//! The RBF field's emission–absorption passes on the GPU (rbf.wgsl), the mirror of
-//! [`fluidcast_render::render_rbf`] without shadows: the BVH built on the host
+//! The RBF field's passes on the GPU (rbf.wgsl), emission–absorption or lit with shadows,
+//! the mirror of [`fluidcast_render::render_rbf`]: the BVH built on the host
 //! ([`fluidcast_rbf::ClusterBvh`]) is uploaded as it is (heap-ordered boxes, Hilbert-ordered
 //! spheres) and traversed in compute, one point range query per sample. wgpu has no
 //! ray-tracing pipelines for custom primitives, so there are no RT cores here: the traversal
@@ -25,9 +25,6 @@ fn refuse(params: &RenderParams, rbf: &RbfRenderParams) -> Result<(), GpuError> 
             "the GPU's RBF field does not draw {what} yet; render with --backend cpu"
         )))
     };
-    if rbf.shadows.is_some() {
-        return Err(no("shadows"));
-    }
     if params.depth_limit.is_some() || params.depth_near.is_some() {
         return Err(no("depth limits (opaque geometry, cropping)"));
     }
@@ -38,8 +35,8 @@ fn refuse(params: &RenderParams, rbf: &RbfRenderParams) -> Result<(), GpuError> 
 }
 
 impl Gpu {
-    /// Renders `field` as [`fluidcast_render::render_rbf`] does (emission–absorption, the
-    /// same passes and offsets), in single precision on the GPU.
+    /// Renders `field` as [`fluidcast_render::render_rbf`] does (the same passes, offsets,
+    /// shade points and shadow rays), in single precision on the GPU.
     pub fn render_rbf(
         &self,
         field: &RbfField,
@@ -84,9 +81,16 @@ impl Gpu {
             seed: rbf.seed,
             colouring: colouring_code(field.colouring()),
             noise: noise_code(rbf.noise),
-            // Every node and every particle: the most one point query can visit.
-            query_bound: (bvh.boxes().len() + n).min(u32::MAX as usize / 2) as u32,
-            pad: [0; 2],
+            // Every node and every particle, and each loop's exit: the most one point query
+            // can take (see `field_at`).
+            query_bound: (bvh.boxes().len() + 2 * n + 2).min(u32::MAX as usize / 4) as u32,
+            shadows: u32::from(rbf.shadows.is_some()),
+            shadow_samples: rbf.shadows.as_ref().map_or(1, |s| s.samples),
+            light: rbf.shadows.as_ref().map_or([0.0; 4], |s| {
+                [s.light[0] as f32, s.light[1] as f32, s.light[2] as f32, 0.0]
+            }),
+            ambient: rbf.shadows.as_ref().map_or(1.0, |s| s.ambient as f32),
+            pad: [0; 3],
         };
         let boxes: Vec<[f32; 4]> = bvh
             .boxes()

@@ -46,7 +46,7 @@ pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
 pub use rbf::{
     mix32, rbf_step_checked, render_rbf, white_offset, Noise, RbfRenderParams, RbfShadows, HASH_IN,
-    HASH_MUL, HASH_SEED, MAX_RBF_STEPS,
+    HASH_MUL, HASH_SEED, MAX_OPTICAL_DEPTH, MAX_RBF_STEPS, PICK_STREAM, SHADOW_STREAM,
 };
 pub use reference::render_reference;
 pub use surface::{IsoField, SurfaceError, Surfaces};

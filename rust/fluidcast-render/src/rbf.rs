@@ -180,7 +180,7 @@ pub const PICK_STREAM: u32 = 0x5bd1_e995;
 pub const SHADOW_STREAM: u32 = 0x27d4_eb2f;
 
 /// A shadow ray stops once its optical depth passes this (transmittance below 2e-9).
-const MAX_OPTICAL_DEPTH: f64 = 20.0;
+pub const MAX_OPTICAL_DEPTH: f64 = 20.0;
 
 /// Single scattering toward a directional light (Morrical et al. 2023, Sec. 3.3.2): the
 /// transfer function's colours become albedos.
