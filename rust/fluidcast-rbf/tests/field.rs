@@ -124,6 +124,47 @@ fn ray_queries_return_every_sphere_the_ray_crosses_and_where() {
     }
 }
 
+#[test]
+fn frustum_queries_keep_every_sphere_not_wholly_outside_a_plane() {
+    let p = cloud(3000, 13, (0.01, 0.1));
+    let radii = random_radii(p.len(), 21);
+    let mut rnd = rng(31);
+    for leaf in [1, 8] {
+        let bvh = ClusterBvh::build(&p.positions, &radii, leaf).unwrap();
+        let mut total = 0;
+        for q in 0..60 {
+            // Four random planes through points near the cloud (a frustum-like wedge).
+            let planes: Vec<[f64; 4]> = (0..4)
+                .map(|_| {
+                    let n: Vec<f64> = (0..3).map(|_| f64::from(rnd()) - 0.5).collect();
+                    let len = n.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-9);
+                    let n: Vec<f64> = n.iter().map(|v| v / len).collect();
+                    let at: Vec<f64> = (0..3).map(|_| 0.6 * f64::from(rnd()) - 0.3).collect();
+                    let d = -(0..3).map(|k| n[k] * at[k]).sum::<f64>();
+                    [n[0], n[1], n[2], d]
+                })
+                .collect();
+            let mut got = Vec::new();
+            bvh.for_each_in_planes(&planes, |s| got.push(bvh.particle(s)));
+            got.sort_unstable();
+            // The rule, particle by particle: visible, and on the inner side of every plane
+            // within its radius.
+            let want: Vec<u32> = (0..p.len() as u32)
+                .filter(|&i| {
+                    let (c, r) = (p.positions[i as usize], f64::from(radii[i as usize]));
+                    r > 0.0
+                        && planes.iter().all(|pl| {
+                            (0..3).map(|k| pl[k] * f64::from(c[k])).sum::<f64>() + pl[3] >= -r
+                        })
+                })
+                .collect();
+            assert_eq!(got, want, "leaf {leaf}, query {q}");
+            total += want.len();
+        }
+        assert!(total > 1000, "the queries must keep particles: {total}");
+    }
+}
+
 /// `Σ φ_i` and `Σ φ_i θ_i` at `x` over all particles, with the paper's Eq. 1–2 written out.
 fn brute_sums(
     p: &Particles,
