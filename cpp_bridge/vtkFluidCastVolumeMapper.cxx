@@ -496,6 +496,10 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
       s.light[k] = this->LightDirection[k];
     }
     s.shadow_ambient = this->ShadowAmbient;
+    for (double v : this->RBFRadiusMap)
+    {
+      s.radius_map.push_back(v);
+    }
     s.error_tolerance = this->ErrorTolerance;
     s.backend = this->Backend;
     s.adapter = this->Adapter ? this->Adapter : "";
@@ -516,6 +520,24 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     return false;
   }
   return true;
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastVolumeMapper::AddRBFRadiusMapPoint(double position, double factor)
+{
+  this->RBFRadiusMap.push_back(position);
+  this->RBFRadiusMap.push_back(factor);
+  this->Modified();
+}
+
+//------------------------------------------------------------------------------
+void vtkFluidCastVolumeMapper::RemoveAllRBFRadiusMapPoints()
+{
+  if (!this->RBFRadiusMap.empty())
+  {
+    this->RBFRadiusMap.clear();
+    this->Modified();
+  }
 }
 
 //------------------------------------------------------------------------------
@@ -799,6 +821,12 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "LightDirection: (" << this->LightDirection[0] << ", "
      << this->LightDirection[1] << ", " << this->LightDirection[2] << ")\n";
   os << indent << "ShadowAmbient: " << this->ShadowAmbient << "\n";
+  os << indent << "RBFRadiusMap:";
+  for (size_t k = 0; k + 1 < this->RBFRadiusMap.size(); k += 2)
+  {
+    os << " (" << this->RBFRadiusMap[k] << ", " << this->RBFRadiusMap[k + 1] << ")";
+  }
+  os << (this->RBFRadiusMap.empty() ? " (none: 1 everywhere)\n" : "\n");
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
   os << indent << "MemoryLimit: " << this->MemoryLimit << " MiB\n";

@@ -127,6 +127,14 @@ public:
   vtkGetVector3Macro(LightDirection, double);
   vtkSetClampMacro(ShadowAmbient, double, 0.0, 1.0);
   vtkGetMacro(ShadowAmbient, double);
+  /**
+   * The RBF radius map: points (position on the colour map's range 0..1, radius factor >= 0),
+   * linear between them; a factor of 0 hides particles. None (default): 1 everywhere. A change
+   * refits the field's BVH instead of rebuilding it.
+   */
+  void AddRBFRadiusMapPoint(double position, double factor);
+  void RemoveAllRBFRadiusMapPoints();
+  int GetNumberOfRBFRadiusMapPoints() { return static_cast<int>(this->RBFRadiusMap.size() / 2); }
   ///@}
 
   ///@{
@@ -335,6 +343,8 @@ protected:
   vtkTypeBool Shadows = 0;
   double LightDirection[3] = { 0, 0, 0 };
   double ShadowAmbient = 0.25;
+  /** (position, factor) pairs, flattened. */
+  std::vector<double> RBFRadiusMap;
   int Backend = AUTO;
   char* Adapter = nullptr;
   double MemoryLimit = 0.0;

@@ -353,6 +353,16 @@ void vtkFluidCastRepresentation::SetShadowAmbient(double a)
   this->Mapper->SetShadowAmbient(a);
 }
 
+void vtkFluidCastRepresentation::AddRBFRadiusMapPoint(double position, double factor)
+{
+  this->Mapper->AddRBFRadiusMapPoint(position, factor);
+}
+
+void vtkFluidCastRepresentation::RemoveAllRBFRadiusMapPoints()
+{
+  this->Mapper->RemoveAllRBFRadiusMapPoints();
+}
+
 void vtkFluidCastRepresentation::SetBackend(int backend)
 {
   this->Mapper->SetBackend(backend);

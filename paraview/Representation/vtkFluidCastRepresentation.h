@@ -76,6 +76,9 @@ public:
   void SetShadows(int on);
   void SetLightDirection(double x, double y, double z);
   void SetShadowAmbient(double a);
+  /** The RBF radius map's points (position 0..1, factor); cleared first by ParaView. */
+  void AddRBFRadiusMapPoint(double position, double factor);
+  void RemoveAllRBFRadiusMapPoints();
   ///@}
 
   ///@{

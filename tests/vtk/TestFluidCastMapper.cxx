@@ -316,6 +316,7 @@ struct Settings
   std::string classification;      // non-empty: RBFClassification and --classification
   int passes = 1;                  // RBF: still renders accumulated (ProgressivePasses), --spp
   bool shadows = false;            // RBF: Shadows and --shadows
+  std::vector<double> radiusMap;   // RBF: AddRBFRadiusMapPoint and --radius-map
   double Tolerance() const { return tolerance == "off" ? 0.0 : std::stod(tolerance); }
   /** Largest channel difference (of 255) allowed between the mapper and the CLI. */
   int Allowed() const
@@ -391,6 +392,10 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
     {
       s.mapper->SetRBFClassification(st.classification.c_str());
     }
+    for (size_t k = 0; k + 1 < st.radiusMap.size(); k += 2)
+    {
+      s.mapper->AddRBFRadiusMapPoint(st.radiusMap[k], st.radiusMap[k + 1]);
+    }
   }
   double b[6];
   s.mapper->GetBounds(b);
@@ -438,6 +443,10 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
   if (st.shadows)
   {
     cmd << " --shadows";
+  }
+  for (size_t k = 0; k < st.radiusMap.size(); ++k)
+  {
+    cmd << (k == 0 ? " --radius-map " : ",") << st.radiusMap[k];
   }
   std::cout << cmd.str() << "\n";
   if (std::system(cmd.str().c_str()) != 0)
@@ -553,6 +562,19 @@ int Properties(const std::string& data, const std::string& array, const std::str
   Settings pre = rbf;
   pre.classification = "pre";
   const Pair prePair = check("rbf_pre", pre);
+  {
+    // The radius map: the fastest particles at half radius. Against the RBF image too.
+    Settings map = rbf;
+    map.radiusMap = { 0, 1, 1, 0.5 };
+    const Pair mp = check("rbf_radius_map", map);
+    const Diff moved = Compare(post.mapper, mp.cli);
+    std::cout << "rbf_radius_map: unmapped mapper vs this CLI max " << moved.max << "/255\n";
+    if (moved.max <= 2)
+    {
+      std::cerr << "FAIL: rbf_radius_map: the radius map does not change the image\n";
+      ++failures;
+    }
+  }
   // Against the RBF image too: a mapper that ignored RBFClassification would draw `post`.
   const Diff preMoved = Compare(post.mapper, prePair.cli);
   std::cout << "rbf_pre: post mapper vs pre CLI max " << preMoved.max << "/255\n";

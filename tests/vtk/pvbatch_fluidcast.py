@@ -231,6 +231,12 @@ if properties:
         Render(view)
     status = status or (0 if property_follows_cli("rbf", extra=(
         "--field", "rbf", "--spp", "8")) else 1)
+    display.FluidCastRBFRadiusMap = [0.0, 1.0, 1.0, 0.5]
+    for _ in range(8):
+        Render(view)
+    status = status or (0 if property_follows_cli("rbf_radius_map", extra=(
+        "--field", "rbf", "--spp", "8", "--radius-map", "0,1,1,0.5")) else 1)
+    display.FluidCastRBFRadiusMap = []
     display.FluidCastShadows = 1
     display.FluidCastLightDirection = [0.0, 1.0, 0.0]
     for _ in range(8):

@@ -89,6 +89,9 @@ mod ffi {
         light: [f64; 3],
         /// RBF shadows: the light a fully shadowed point still receives (0..1).
         shadow_ambient: f64,
+        /// RBF: the radius map, pairs of position on the colour map's range (0..1) and
+        /// radius factor (>= 0; 0 hides); empty: 1 everywhere. A change refits the BVH.
+        radius_map: Vec<f64>,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -946,6 +949,7 @@ mod tests {
             shadows: false,
             light: [0.0; 3],
             shadow_ambient: 0.25,
+            radius_map: Vec::new(),
         }
     }
 
@@ -1156,6 +1160,30 @@ mod tests {
         r.camera = Some(c);
         let moved = frame(&mut r);
         assert!(moved.1 > 0 && moved.0 != renders[3].0);
+        // The radius map refits the tree: factor 0 everywhere hides every particle, and
+        // back to 1 the first image returns.
+        let hidden = ffi::Settings {
+            radius_map: vec![0.0, 0.0, 1.0, 0.0],
+            ..s.clone()
+        };
+        r.configure(&hidden).unwrap();
+        r.camera = Some(cam.clone());
+        let none = frame(&mut r);
+        assert!(none.0.iter().all(|&v| v == 0.0), "all hidden");
+        r.configure(&s).unwrap();
+        assert_eq!(
+            frame(&mut r).0,
+            renders[0].0,
+            "radius map 1 again: the first render"
+        );
+        let odd = ffi::Settings {
+            radius_map: vec![0.0, 1.0, 1.0],
+            ..s.clone()
+        };
+        r.configure(&odd).unwrap();
+        let (mut rgba, mut depth) = (vec![0f32; 4 * n], vec![0f32; n]);
+        let e = r.render(w, h, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(e.contains("pairs"), "{e}");
         // Bad RBF settings are errors naming them.
         let bad = ffi::Settings {
             rbf_classification: "sideways".into(),

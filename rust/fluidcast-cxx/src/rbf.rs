@@ -5,17 +5,18 @@ use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
 
 use fluidcast_image::Image;
-use fluidcast_rbf::{Colouring, RbfField, RbfOptions};
+use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions};
 use fluidcast_render::{render_rbf, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
 use crate::ffi;
 
-/// The RBF field of the prepared particles and a fingerprint of what it was built with
-/// (transfer function and field options).
+/// The RBF field of the prepared particles, a fingerprint of what it was built with
+/// (transfer function and field options but the radius map) and the radius map it holds.
 pub struct RbfCache {
     key: u64,
+    radius_map: AttributeMap,
     field: RbfField,
 }
 
@@ -58,8 +59,17 @@ fn options(s: &ffi::Settings, attribute: bool) -> Result<RbfOptions, String> {
         (true, "pre") => Colouring::Pre,
         (true, c) => return Err(format!("RBF classification '{c}': expected post or pre")),
     };
+    let radius_map = match &s.radius_map[..] {
+        [] => AttributeMap::constant(1.0),
+        m if m.len() % 2 == 0 => {
+            AttributeMap::new(m.chunks_exact(2).map(|c| (c[0], c[1])).collect())
+                .map_err(|e| e.to_string())?
+        }
+        m => return Err(format!("RBF radius map: {} values, not pairs", m.len())),
+    };
     Ok(RbfOptions {
         radius: (s.rbf_radius > 0.0).then_some(s.rbf_radius),
+        radius_map,
         colouring,
         ..Default::default()
     })
@@ -108,14 +118,31 @@ impl RbfState {
             );
         }
         let opts = options(s, !s.scalars.is_empty())?;
-        let field_key = fingerprint(&format!("{tf:?}{opts:?}"), &[]);
-        if self.cache.as_ref().map(|c| c.key) != Some(field_key) {
-            self.accumulated = None;
-            let field = RbfField::build(particles, tf, &opts).map_err(|e| e.to_string())?;
-            self.cache = Some(RbfCache {
-                key: field_key,
-                field,
-            });
+        let built = RbfOptions {
+            radius_map: AttributeMap::constant(1.0),
+            ..opts.clone()
+        };
+        let field_key = fingerprint(&format!("{tf:?}{built:?}"), &[]);
+        match &mut self.cache {
+            Some(c) if c.key == field_key => {
+                if c.radius_map != opts.radius_map {
+                    // Only the radii change: refit the tree (Morrical et al., Sec. 3.2.2).
+                    self.accumulated = None;
+                    c.field
+                        .set_radius_map(&opts.radius_map)
+                        .map_err(|e| e.to_string())?;
+                    c.radius_map = opts.radius_map.clone();
+                }
+            }
+            _ => {
+                self.accumulated = None;
+                let field = RbfField::build(particles, tf, &opts).map_err(|e| e.to_string())?;
+                self.cache = Some(RbfCache {
+                    key: field_key,
+                    radius_map: opts.radius_map.clone(),
+                    field,
+                });
+            }
         }
         let Some(cache) = &self.cache else {
             return Err("RBF field missing".into());
