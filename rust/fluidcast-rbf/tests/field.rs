@@ -76,6 +76,32 @@ fn range_queries_return_exactly_the_particles_in_range_before_and_after_refit() 
     }
 }
 
+/// Points exactly on a sphere's extreme (centre ± radius along an axis, exact in double
+/// precision) are in range, so the single-precision boxes must be rounded outward.
+#[test]
+fn points_on_a_spheres_extreme_are_found() {
+    let mut rnd = rng(77);
+    let mut found = 0;
+    for _ in 0..2000 {
+        let c = [0, 1, 2].map(|_| 10.0 * rnd() - 5.0);
+        let r = 0.001 + 0.3 * rnd();
+        let bvh = ClusterBvh::build(&[c], &[r], 1).unwrap();
+        for a in 0..3 {
+            for sign in [-1.0, 1.0] {
+                let mut x = c.map(f64::from);
+                x[a] += sign * f64::from(r);
+                // |x - c| is r exactly here: the sphere holds x.
+                assert_eq!((x[a] - f64::from(c[a])).abs(), f64::from(r));
+                let mut hit = false;
+                bvh.for_each_within(x, |_| hit = true);
+                assert!(hit, "centre {c:?}, radius {r}, axis {a}, side {sign}");
+                found += 1;
+            }
+        }
+    }
+    assert_eq!(found, 12000);
+}
+
 #[test]
 fn ray_queries_return_every_sphere_the_ray_crosses_and_where() {
     let p = cloud(2000, 5, (0.02, 0.1));
