@@ -108,7 +108,9 @@ public:
    * accumulate passes up to ProgressivePasses (ParaView's OSPRay "Samples Per Pixel" and
    * "Progressive Passes"): render again to refine. With Shadows on, single scattering toward
    * a directional light from world direction LightDirection (0,0,0, the default: from above
-   * and behind the camera), a fully shadowed point keeping ShadowAmbient of the light.
+   * and behind the camera), a fully shadowed point keeping ShadowAmbient of the light; for
+   * the RBF field and the SPH fields alike (an SPH field is then marched the same stochastic
+   * way, with the same passes, on the CPU).
    */
   vtkSetStringMacro(Field);
   vtkGetStringMacro(Field);

@@ -383,9 +383,12 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
     s.mapper->SetVectorMode(1);
     s.mapper->SetVectorComponent(st.component);
   }
-  if (!st.field.empty())
+  if (!st.field.empty() || st.shadows)
   {
-    s.mapper->SetField(st.field.c_str());
+    if (!st.field.empty())
+    {
+      s.mapper->SetField(st.field.c_str());
+    }
     s.mapper->SetProgressivePasses(st.passes);
     s.mapper->SetShadows(st.shadows);
     if (!st.classification.empty())
@@ -434,7 +437,11 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
   }
   if (!st.field.empty())
   {
-    cmd << " --field " << st.field << " --spp " << st.passes;
+    cmd << " --field " << st.field;
+  }
+  if (!st.field.empty() || st.shadows)
+  {
+    cmd << " --spp " << st.passes;
   }
   if (!st.classification.empty())
   {
@@ -601,6 +608,32 @@ int Properties(const std::string& data, const std::string& array, const std::str
       if (agree.above2 * 200 > channels || moved.max <= 2)
       {
         std::cerr << "FAIL: rbf_shadows: the mapper does not follow the CLI\n";
+        ++failures;
+      }
+    }
+    else
+    {
+      ++failures;
+    }
+  }
+  {
+    // Shadows on the SPH field (the CSPH field, marched stochastically): against the CLI's
+    // --shadows, and unlike the default image.
+    Settings lit = base;
+    lit.shadows = true;
+    lit.passes = 8;
+    Pair p;
+    if (RenderPair(ug, data, array, out + "/sph_shadows", cli, lit, p))
+    {
+      const Diff agree = Compare(p.mapper, p.cli);
+      const Diff moved = Compare(def.mapper, p.cli);
+      const size_t channels = static_cast<size_t>(3) * p.mapper.w * p.mapper.h;
+      std::cout << "sph_shadows: mapper vs CLI max " << agree.max << "/255, " << agree.above2
+                << " channels above 2/255; default mapper vs this CLI max " << moved.max
+                << "/255\n";
+      if (agree.above2 * 200 > channels || moved.max <= 2)
+      {
+        std::cerr << "FAIL: sph_shadows: the mapper does not follow the CLI\n";
         ++failures;
       }
     }

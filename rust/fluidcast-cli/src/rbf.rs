@@ -63,7 +63,8 @@ pub struct RbfArgs {
     /// particle's standard deviation (radius/3), over --sampling-scale.
     #[arg(long, allow_hyphen_values = true)]
     pub rbf_step: Option<f64>,
-    /// --field rbf: single scattering with volumetric shadows toward a directional light
+    /// --field rbf, or any SPH field (drawn then by the same stochastic ray marcher, on the
+    /// CPU): single scattering with volumetric shadows toward a directional light
     /// (--light X,Y,Z, the world direction toward it; default: from above and behind the
     /// camera, view up plus half the way back to the eye and a quarter to the right). The
     /// transfer function's colours become albedos; each pass shades one point per pixel and
@@ -148,6 +149,14 @@ fn parse_vector(s: &str) -> Result<[f64; 3]> {
     }
 }
 
+/// What the stochastic ray marcher draws.
+pub enum Marched {
+    /// The RBF field with these options.
+    Rbf(RbfOptions),
+    /// The SPH field the render parameters name (kernel, field), lit with --shadows.
+    Sph,
+}
+
 /// Builds one frame's field (a new BVH: particles move between time steps), and for a
 /// density field without `--range` sets the colour map's range to the largest Φ at a sample
 /// of particle centres; then renders it. The build and, with `refit`, one refit of the tree
@@ -157,13 +166,24 @@ pub fn render_frame(
     camera: &Camera,
     tf: &mut TransferFunction,
     params: &RenderParams,
-    (opts, rbf, auto_range): (&RbfOptions, &RbfRenderParams, bool),
+    (marched, rbf, auto_range): (&Marched, &RbfRenderParams, bool),
     (refit, gpu): (bool, Option<&fluidcast_backend::Gpu>),
 ) -> Result<(Image, RenderStats, usize)> {
     let t = Instant::now();
-    let mut field = RbfField::build(particles, tf, opts)?;
+    let mut field = match marched {
+        Marched::Rbf(opts) => RbfField::build(particles, tf, opts)?,
+        Marched::Sph => {
+            RbfField::from_sph(particles, params.kernel, params.field, DEFAULT_LEAF_SIZE)?
+        }
+    };
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut stages = vec![("bvh", build_ms)];
+    let Marched::Rbf(opts) = marched else {
+        // SPH fields are marched on the CPU (the GPU's shader sums Gaussians).
+        let (image, mut stats) = render_rbf(&field, camera, tf, params, rbf)?;
+        stats.stages.splice(0..0, stages);
+        return Ok((image, stats, field.memory_bytes()));
+    };
     if refit {
         let t = Instant::now();
         field.set_radius_map(&opts.radius_map)?;

@@ -14,6 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
+use crate::rbf::Marched;
 use crate::surface::{IsoSource, SurfaceArgs};
 use crate::view::{Mode, SamplingArgs, ViewArgs};
 use fluidcast_backend::{Backend, Renderer};
@@ -510,23 +511,39 @@ pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
 }
 
 /// `--field rbf`: the field's options, after refusing what its renderer does not do.
-fn rbf_setup(a: &RenderArgs) -> Result<Option<fluidcast_rbf::RbfOptions>> {
-    if !a.particles.rbf() {
+/// `--field rbf`, or an SPH field with `--shadows`: what the stochastic ray marcher draws,
+/// after refusing what it does not do.
+fn rbf_setup(a: &RenderArgs) -> Result<Option<Marched>> {
+    let what = if a.particles.rbf() {
+        "--field rbf"
+    } else if a.rbf.shadows {
+        "--shadows"
+    } else {
         return Ok(None);
-    }
+    };
     if a.sampling.mode.is_some() {
-        bail!("--field rbf is drawn by its own ray marcher (on the CPU, or with --backend gpu on the GPU): drop --mode");
+        bail!("{what} is drawn by its own ray marcher (on the CPU, or with --backend gpu on the GPU): drop --mode");
     }
     if a.split.memory_limit.is_some() || a.split.tiles.is_some() {
-        bail!("--field rbf does not render in screen tiles yet: drop --memory-limit and --tiles");
+        bail!("{what} does not render in screen tiles yet: drop --memory-limit and --tiles");
     }
     if a.surface.on() || a.surface.shade_volume {
-        bail!("--field rbf draws no iso-surfaces and no shaded volume yet: drop --iso and --shade-volume");
+        bail!(
+            "{what} draws no iso-surfaces and no shaded volume yet: drop --iso and --shade-volume"
+        );
     }
     // The march's own errors (bad --light, --rbf-step), before reading.
     a.rbf
         .render_params(&Camera::default(), a.surface.light.as_deref())?;
-    Ok(Some(a.rbf.options(a.particles.array.is_some())?))
+    if !a.particles.rbf() {
+        if a.sampling.backend == Backend::Gpu {
+            bail!("--shadows on an SPH field renders on the CPU (the GPU draws the lit RBF field only): drop --backend gpu");
+        }
+        return Ok(Some(Marched::Sph));
+    }
+    Ok(Some(Marched::Rbf(
+        a.rbf.options(a.particles.array.is_some())?,
+    )))
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -561,7 +578,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
     }
     let rbf = rbf_setup(&a)?;
-    // The RBF field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
+    // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
     let mode = if rbf.is_some() { Mode::Adaptive } else { mode };
     let recipe = Recipe {
         spec: &spec,
@@ -606,10 +623,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let how = (mode, a.sampling.grid_cell, tiles);
         let mut rbf_bytes = None;
         let (image, mut stats) = match &rbf {
-            Some(opts) => {
+            Some(marched) => {
                 let auto_range = first && !a.view.has_range();
                 let rp = a.rbf.render_params(cam, a.surface.light.as_deref())?;
-                let how = (opts, &rp, auto_range);
+                let how = (marched, &rp, auto_range);
                 let refit = a.stats.is_some();
                 let on = renderer.gpu();
                 let (image, stats, bytes) =

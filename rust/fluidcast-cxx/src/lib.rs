@@ -759,9 +759,9 @@ impl Renderer {
             let t = Instant::now();
             self.prepared()?;
             params.surfaces = self.surfaces_now(&s.scalars)?;
-            if is_rbf(&s.field) {
+            if is_rbf(&s.field) || s.shadows {
                 if s.memory_limit_mib > 0.0 {
-                    return Err(format!("{name}: the RBF field does not render in screen tiles (a memory limit) yet"));
+                    return Err(format!("{name}: the RBF field and shadows do not render in screen tiles (a memory limit) yet"));
                 }
                 let p = self
                     .prepared
@@ -871,7 +871,7 @@ fn parse_field(s: &str) -> Result<FieldKind, String> {
 }
 
 /// Whether `Settings::field` names the RBF field.
-fn is_rbf(field: &str) -> bool {
+pub(crate) fn is_rbf(field: &str) -> bool {
     field.eq_ignore_ascii_case("rbf")
 }
 

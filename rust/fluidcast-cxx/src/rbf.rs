@@ -5,7 +5,7 @@ use std::collections::hash_map::DefaultHasher;
 use std::hash::{Hash, Hasher};
 
 use fluidcast_image::Image;
-use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions};
+use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions, DEFAULT_LEAF_SIZE};
 use fluidcast_render::{render_rbf, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
@@ -102,7 +102,8 @@ fn march(
 }
 
 impl RbfState {
-    /// Renders `particles` as an RBF field: `s.samples_per_pixel` new passes, averaged with
+    /// Renders `particles` as an RBF field, or (with shadows) as the SPH field `params`
+    /// names: `s.samples_per_pixel` new passes, averaged with
     /// those of the previous renders of the same view up to `s.progressive_passes` (once
     /// there, the accumulated image again, without rendering).
     pub fn render(
@@ -116,6 +117,22 @@ impl RbfState {
             return Err(
                 "the RBF field draws no iso-surfaces (use the composite blend mode)".into(),
             );
+        }
+        if !crate::is_rbf(&s.field) {
+            // An SPH field lit with shadows: marched over its supports, built once.
+            let key = fingerprint(&format!("sph {:?} {:?}", params.kernel, params.field), &[]);
+            if self.cache.as_ref().map(|c| c.key) != Some(key) {
+                self.accumulated = None;
+                let field =
+                    RbfField::from_sph(particles, params.kernel, params.field, DEFAULT_LEAF_SIZE)
+                        .map_err(|e| e.to_string())?;
+                self.cache = Some(RbfCache {
+                    key,
+                    radius_map: AttributeMap::constant(1.0),
+                    field,
+                });
+            }
+            return self.march(key, (camera, tf), params, s);
         }
         let opts = options(s, !s.scalars.is_empty())?;
         let built = RbfOptions {
@@ -144,6 +161,18 @@ impl RbfState {
                 });
             }
         }
+        self.march(field_key, (camera, tf), params, s)
+    }
+
+    /// Renders the cached field (`field_key`): new passes averaged with those accumulated
+    /// for the same view (see [`RbfState::render`]).
+    fn march(
+        &mut self,
+        field_key: u64,
+        (camera, tf): (&Camera, &TransferFunction),
+        params: &RenderParams,
+        s: &ffi::Settings,
+    ) -> Result<(Image, RenderStats), String> {
         let Some(cache) = &self.cache else {
             return Err("RBF field missing".into());
         };

@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use fluidcast_image::Image;
-use fluidcast_rbf::RbfField;
+use fluidcast_rbf::{Profile, RbfField};
 use fluidcast_render::{
     ms, rbf_step_checked, refuse_surfaces, validate, RbfRenderParams, RenderError, RenderParams,
     RenderStats,
@@ -19,12 +19,15 @@ use crate::layout::{colouring_code, frame_uniform, noise_code, RbfUniform};
 use crate::{cast, push_stage, Gpu, GpuError, RW};
 
 /// Refuses what the GPU's RBF passes do not draw yet.
-fn refuse(params: &RenderParams, rbf: &RbfRenderParams) -> Result<(), GpuError> {
+fn refuse(field: &RbfField, params: &RenderParams, rbf: &RbfRenderParams) -> Result<(), GpuError> {
     let no = |what: &str| {
         GpuError::Render(RenderError::Rbf(format!(
             "the GPU's RBF field does not draw {what} yet; render with --backend cpu"
         )))
     };
+    if field.profile() != Profile::Gaussian {
+        return Err(no("SPH fields (its shader sums the RBF field's Gaussians)"));
+    }
     if params.depth_limit.is_some() || params.depth_near.is_some() {
         return Err(no("depth limits (opaque geometry, cropping)"));
     }
@@ -47,7 +50,7 @@ impl Gpu {
     ) -> Result<(Image, RenderStats), GpuError> {
         validate(params)?;
         refuse_surfaces(params, "the GPU's RBF field")?;
-        refuse(params, rbf)?;
+        refuse(field, params, rbf)?;
         let points = tf.colors.len().max(tf.opacity.len());
         if points > crate::MAX_TF_POINTS {
             return Err(GpuError::TransferFunction(points));

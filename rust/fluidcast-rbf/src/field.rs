@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use fluidcast_sph::Particles;
+use fluidcast_sph::{FieldKind, Kernel, Particles};
 use fluidcast_view::TransferFunction;
 
 use crate::bvh::{holds, ClusterBvh};
@@ -109,6 +109,30 @@ impl AttributeMap {
     }
 }
 
+/// The radial function each particle contributes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Profile {
+    /// The paper's truncated Gaussian, `w·exp(−½(3d/r)²)` ([`rbf`]).
+    #[default]
+    Gaussian,
+    /// An SPH field ([`RbfField::from_sph`]): `w·W(d, r)` with the SPH kernel, `r` the
+    /// support radius, so that the sums are the SPH renderers' (Σ V A W and Σ V W, or Σ m W)
+    /// and a field sampled this way is theirs; the transfer function classifies the field's
+    /// value ([`FieldKind`]) as they do.
+    Sph(Kernel, FieldKind),
+}
+
+impl Profile {
+    /// A particle's contribution at distance `d` from its centre (radius `r`, weight `w`).
+    #[inline]
+    pub fn eval(self, d: f64, r: f64, w: f64) -> f64 {
+        match self {
+            Profile::Gaussian => rbf(d, r, w),
+            Profile::Sph(k, _) => w * k.eval(d, r),
+        }
+    }
+}
+
 /// How particles become an RBF field.
 #[derive(Debug, Clone)]
 pub struct RbfOptions {
@@ -165,6 +189,7 @@ pub struct RbfField {
     weights: Vec<f32>,
     thetas: Vec<[f32; 3]>,
     colouring: Colouring,
+    profile: Profile,
     /// Per caller index: the radius at factor 1 and the attribute's map position.
     base_radii: Vec<f32>,
     positions: Vec<f32>,
@@ -221,9 +246,51 @@ impl RbfField {
             weights,
             thetas,
             colouring: opts.colouring,
+            profile: Profile::Gaussian,
             base_radii,
             positions,
         })
+    }
+
+    /// The SPH field `field` of `particles` with `kernel`, as particles the BVH finds in
+    /// range: weight V and value A (Σ V A W, Σ V W), or mass (Σ m W) for a density field,
+    /// out to each support radius. What the stochastic renderer marches for an SPH field
+    /// (lit with shadows), with the BVH over the supports.
+    pub fn from_sph(
+        particles: &Particles,
+        kernel: Kernel,
+        field: FieldKind,
+        leaf_size: usize,
+    ) -> Result<RbfField, RbfError> {
+        if let Some(index) = particles.values.iter().position(|v| v.is_nan()) {
+            return Err(RbfError::Attribute { index });
+        }
+        let bvh = ClusterBvh::build(&particles.positions, &particles.radii, leaf_size)?;
+        let (weights, thetas) = bvh
+            .order()
+            .par_iter()
+            .map(|&i| {
+                let i = i as usize;
+                match field {
+                    FieldKind::Density => (particles.masses[i], [0.0; 3]),
+                    _ => (particles.volumes[i], [particles.values[i], 0.0, 0.0]),
+                }
+            })
+            .unzip();
+        Ok(RbfField {
+            bvh,
+            weights,
+            thetas,
+            colouring: Colouring::Post,
+            profile: Profile::Sph(kernel, field),
+            base_radii: particles.radii.clone(),
+            positions: vec![0.0; particles.len()],
+        })
+    }
+
+    /// The radial function of every particle.
+    pub fn profile(&self) -> Profile {
+        self.profile
     }
 
     /// A new radius map: the radii change and the tree is refit, not rebuilt.
@@ -281,7 +348,7 @@ impl RbfField {
         let c = self.bvh.sphere(slot);
         let d2: f64 = (0..3).map(|a| (x[a] - f64::from(c[a])).powi(2)).sum();
         let (w, theta) = self.weight_theta(slot);
-        let phi = rbf(d2.sqrt(), f64::from(c[3]), f64::from(w));
+        let phi = self.profile.eval(d2.sqrt(), f64::from(c[3]), f64::from(w));
         s.density += phi;
         for (w, th) in s.weighted.iter_mut().zip(theta) {
             *w += phi * f64::from(th);

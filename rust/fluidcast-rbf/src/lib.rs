@@ -21,7 +21,8 @@ mod hilbert;
 
 pub use bvh::{holds, sphere_crossing, Aabb, ClusterBvh, RayHit, MAX_LEAF_SIZE};
 pub use field::{
-    rbf, AttributeMap, Colouring, RbfField, RbfOptions, RbfSample, DEFAULT_LEAF_SIZE, SIGMAS,
+    rbf, AttributeMap, Colouring, Profile, RbfField, RbfOptions, RbfSample, DEFAULT_LEAF_SIZE,
+    SIGMAS,
 };
 pub use hilbert::{hilbert_key, HILBERT_BITS};
 

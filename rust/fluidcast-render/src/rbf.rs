@@ -15,7 +15,8 @@ use std::ops::Range;
 use std::time::Instant;
 
 use fluidcast_image::Image;
-use fluidcast_rbf::{sphere_crossing, Colouring, RayHit, RbfField, RbfSample, SIGMAS};
+use fluidcast_rbf::{sphere_crossing, Colouring, Profile, RayHit, RbfField, RbfSample, SIGMAS};
+use fluidcast_sph::FieldKind;
 use fluidcast_view::{Camera, TfLookup, TransferFunction, ViewFrame};
 use rayon::prelude::*;
 
@@ -361,14 +362,28 @@ impl Marcher<'_> {
                 }
             }
             let mut s = RbfSample::default();
+            let profile = self.field.profile();
             for a in active.iter_mut() {
-                let theta = self.field.weight_theta(hits[a.hit as usize].slot).1;
-                s.density += a.phi;
-                for (w, th) in s.weighted.iter_mut().zip(theta) {
-                    *w += a.phi * f64::from(th);
+                let h = &hits[a.hit as usize];
+                let (w, theta) = self.field.weight_theta(h.slot);
+                let phi = match profile {
+                    Profile::Gaussian => {
+                        let phi = a.phi;
+                        a.phi *= a.ratio;
+                        a.ratio *= a.ratio_step;
+                        phi
+                    }
+                    // An SPH kernel: evaluated where the sample is.
+                    sph => {
+                        let r = f64::from(self.field.bvh().sphere(h.slot)[3]);
+                        let d2 = h.miss2 + dd * (t - h.closest).powi(2);
+                        sph.eval(d2.max(0.0).sqrt(), r, f64::from(w))
+                    }
+                };
+                s.density += phi;
+                for (acc, th) in s.weighted.iter_mut().zip(theta) {
+                    *acc += phi * f64::from(th);
                 }
-                a.phi *= a.ratio;
-                a.ratio *= a.ratio_step;
             }
             if s.density > 0.0 && !visit(t, dt, &s) {
                 return;
@@ -498,6 +513,16 @@ impl Marcher<'_> {
     /// whole transfer function, as the SPH renderers map theirs.
     fn classify(&self, s: &RbfSample) -> ([f64; 3], f64) {
         let unit = self.tf.tf.unit_distance;
+        if let Profile::Sph(_, kind) = self.field.profile() {
+            // As the SPH renderers classify their fields.
+            let q = match kind {
+                FieldKind::Csph => s.weighted[0] / s.density,
+                FieldKind::Sph => s.weighted[0],
+                FieldKind::Density => s.density,
+            };
+            let (rgb, alpha) = self.tf.eval(q);
+            return (rgb, self.tf.tf.extinction(alpha));
+        }
         match self.field.colouring() {
             Colouring::Post => {
                 let theta = s.weighted[0] / s.density;
