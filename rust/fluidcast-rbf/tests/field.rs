@@ -405,3 +405,119 @@ fn bad_particles_are_refused_naming_the_particle() {
     let empty = RbfField::build(&Particles::default(), &tf, &RbfOptions::default()).unwrap();
     assert_eq!(empty.sample([0.0; 3]).density, 0.0);
 }
+
+/// What the GPU uploads (the heap-ordered boxes, the first leaf, the Hilbert-ordered spheres,
+/// the leaf size) answers a point query as the library does: a walk written here over the
+/// public layout.
+#[test]
+fn the_public_layout_walks_to_the_same_particles() {
+    let p = cloud(1500, 41, (0.02, 0.1));
+    let radii = random_radii(p.len(), 43);
+    for leaf in [1, 5, 16] {
+        let bvh = ClusterBvh::build(&p.positions, &radii, leaf).unwrap();
+        let (boxes, spheres) = (bvh.boxes(), bvh.spheres());
+        assert_eq!(bvh.len(), p.len());
+        assert!(!bvh.is_empty());
+        assert_eq!(bvh.leaf_size(), leaf);
+        assert_eq!(bvh.clusters(), p.len().div_ceil(leaf));
+        assert_eq!(boxes.len(), 2 * bvh.first_leaf());
+        assert!(bvh.first_leaf() >= bvh.clusters() && bvh.first_leaf() < 2 * bvh.clusters());
+        assert_eq!(
+            bvh.memory_bytes(),
+            4 * p.len() + 16 * spheres.len() + 24 * boxes.len(),
+            "order, spheres and boxes"
+        );
+        for x in points(100, 47) {
+            let mut got = Vec::new();
+            let mut stack = vec![1usize];
+            while let Some(k) = stack.pop() {
+                let b = boxes[k];
+                let inside =
+                    (0..3).all(|a| f64::from(b.lo[a]) <= x[a] && x[a] <= f64::from(b.hi[a]));
+                if !inside {
+                    continue;
+                }
+                if k >= bvh.first_leaf() {
+                    let c = k - bvh.first_leaf();
+                    for slot in (c * leaf..((c + 1) * leaf).min(spheres.len())).map(|s| s as u32) {
+                        let s = spheres[slot as usize];
+                        let r = f64::from(s[3]);
+                        if r > 0.0 && d2([s[0], s[1], s[2]], x) <= r * r {
+                            got.push(bvh.particle(slot));
+                        }
+                    }
+                } else {
+                    stack.extend([2 * k, 2 * k + 1]);
+                }
+            }
+            got.sort_unstable();
+            assert_eq!(got, brute_within(&p.positions, &radii, x), "leaf {leaf}");
+        }
+    }
+    assert!(ClusterBvh::build(&[], &[], 8).unwrap().is_empty());
+}
+
+/// Hilbert clusters are compact: on a uniform cloud, the mean diagonal of a leaf's box (of
+/// centres) is far below that of clusters of the same size in the input order.
+#[test]
+fn hilbert_clusters_are_compact() {
+    let p = cloud(8000, 51, (0.0, 0.0));
+    let zero = vec![1e-6f32; p.len()];
+    let bvh = ClusterBvh::build(&p.positions, &zero, 8).unwrap();
+    let diag = |ids: &[u32]| {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for &i in ids {
+            for a in 0..3 {
+                lo[a] = lo[a].min(p.positions[i as usize][a]);
+                hi[a] = hi[a].max(p.positions[i as usize][a]);
+            }
+        }
+        (0..3)
+            .map(|a| f64::from(hi[a] - lo[a]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let mean =
+        |order: &[u32]| order.chunks(8).map(diag).sum::<f64>() / order.len().div_ceil(8) as f64;
+    let input: Vec<u32> = (0..p.len() as u32).collect();
+    let (sorted, unsorted) = (mean(bvh.order()), mean(&input));
+    // 8 random points of the unit cube span about 1.2; 8 neighbours of 8,000 about 0.15.
+    assert!(
+        sorted < 0.25 * unsorted,
+        "Hilbert {sorted} vs input order {unsorted}"
+    );
+}
+
+#[test]
+fn edge_cases_of_the_queries_and_the_input() {
+    // A hidden particle is not found even at its exact centre, by a point or a ray.
+    let c = [[0.1f32, 0.2, 0.3], [0.5, 0.5, 0.5]];
+    let bvh = ClusterBvh::build(&c, &[0.0, 0.2], 1).unwrap();
+    assert!(bvh_within(&bvh, [0.1, 0.2, 0.3]).is_empty());
+    let mut hits = 0;
+    bvh.for_each_on_ray([0.1, 0.2, -1.0], [0.0, 0.0, 1.0], (0.0, 9.0), |_| hits += 1);
+    assert_eq!(hits, 0);
+    // A ray without a direction finds nothing (and does not divide by it).
+    bvh.for_each_on_ray([0.5, 0.5, 0.5], [0.0; 3], (0.0, 9.0), |_| hits += 1);
+    assert_eq!(hits, 0);
+    // The Gaussian ends at its radius; a radius of 0 has none.
+    assert_eq!(fluidcast_rbf::rbf(0.2 * 1.0001, 0.2, 1.0), 0.0);
+    assert!(fluidcast_rbf::rbf(0.2, 0.2, 1.0) > 0.0);
+    assert_eq!(fluidcast_rbf::rbf(0.0, 0.0, 1.0), 0.0);
+    // Bad input: lengths, negative or infinite radii.
+    assert!(matches!(
+        ClusterBvh::build(&c, &[0.1], 1),
+        Err(RbfError::Length {
+            got: 1,
+            expected: 2,
+            ..
+        })
+    ));
+    for bad in [-0.1f32, f32::INFINITY] {
+        assert!(matches!(
+            ClusterBvh::build(&c, &[0.1, bad], 1),
+            Err(RbfError::Radius { index: 1, .. })
+        ));
+    }
+}
