@@ -590,58 +590,35 @@ int Properties(const std::string& data, const std::string& array, const std::str
     std::cerr << "FAIL: rbf_pre: pre-classification does not change the image\n";
     ++failures;
   }
+  // Shadows: one shade point a pass, chosen by accumulated opacity, so a pixel whose opacity
+  // differs by a rounding between VTK's sampled tables and the CLI's nodes may pick another
+  // point in a pass: at most 0.5 % of the channels beyond 2/255. Each against the CLI's
+  // --shadows and unlike the unlit image `unlit`.
+  auto checkLit = [&](const std::string& name, Settings lit, const Image& unlit)
   {
-    // Shadows: one shade point a pass, chosen by accumulated opacity, so a pixel whose
-    // opacity differs by a rounding between VTK's sampled tables and the CLI's nodes may pick
-    // another point in a pass: at most 0.5 % of the channels beyond 2/255.
-    Settings lit = rbf;
-    lit.shadows = true;
-    Pair p;
-    if (RenderPair(ug, data, array, out + "/rbf_shadows", cli, lit, p))
-    {
-      const Diff agree = Compare(p.mapper, p.cli);
-      const Diff moved = Compare(post.mapper, p.cli);
-      const size_t channels = static_cast<size_t>(3) * p.mapper.w * p.mapper.h;
-      std::cout << "rbf_shadows: mapper vs CLI max " << agree.max << "/255, " << agree.above2
-                << " channels above 2/255 of " << channels << "; unlit RBF mapper vs this CLI max "
-                << moved.max << "/255\n";
-      if (agree.above2 * 200 > channels || moved.max <= 2)
-      {
-        std::cerr << "FAIL: rbf_shadows: the mapper does not follow the CLI\n";
-        ++failures;
-      }
-    }
-    else
-    {
-      ++failures;
-    }
-  }
-  {
-    // Shadows on the SPH field (the CSPH field, marched stochastically): against the CLI's
-    // --shadows, and unlike the default image.
-    Settings lit = base;
     lit.shadows = true;
     lit.passes = 8;
     Pair p;
-    if (RenderPair(ug, data, array, out + "/sph_shadows", cli, lit, p))
-    {
-      const Diff agree = Compare(p.mapper, p.cli);
-      const Diff moved = Compare(def.mapper, p.cli);
-      const size_t channels = static_cast<size_t>(3) * p.mapper.w * p.mapper.h;
-      std::cout << "sph_shadows: mapper vs CLI max " << agree.max << "/255, " << agree.above2
-                << " channels above 2/255; default mapper vs this CLI max " << moved.max
-                << "/255\n";
-      if (agree.above2 * 200 > channels || moved.max <= 2)
-      {
-        std::cerr << "FAIL: sph_shadows: the mapper does not follow the CLI\n";
-        ++failures;
-      }
-    }
-    else
+    if (!RenderPair(ug, data, array, out + "/" + name, cli, lit, p))
     {
       ++failures;
+      return;
     }
-  }
+    const Diff agree = Compare(p.mapper, p.cli);
+    const Diff moved = Compare(unlit, p.cli);
+    const size_t channels = static_cast<size_t>(3) * p.mapper.w * p.mapper.h;
+    std::cout << name << ": mapper vs CLI max " << agree.max << "/255, " << agree.above2
+              << " channels above 2/255 of " << channels << "; unlit mapper vs this CLI max "
+              << moved.max << "/255\n";
+    if (agree.above2 * 200 > channels || moved.max <= 2)
+    {
+      std::cerr << "FAIL: " << name << ": the mapper does not follow the CLI\n";
+      ++failures;
+    }
+  };
+  checkLit("rbf_shadows", rbf, post.mapper);
+  // Shadows on the SPH field (the CSPH field, marched stochastically).
+  checkLit("sph_shadows", base, def.mapper);
   Settings coarse;
   coarse.tolerance = "0.05";
   Pair p1;

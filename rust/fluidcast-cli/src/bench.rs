@@ -63,6 +63,36 @@ pub struct BenchArgs {
     pub(crate) json: Option<PathBuf>,
 }
 
+/// What every bench starts from: the render parameters and transfer function the options
+/// give, the input, its frames and those chosen, and the particles' spec.
+pub(crate) struct Setup {
+    pub base: fluidcast_render::RenderParams,
+    pub base_tf: fluidcast_view::TransferFunction,
+    pub input: Input,
+    pub all: Vec<(Option<f64>, PathBuf)>,
+    pub frames: Vec<usize>,
+    pub spec: fluidcast_sph::ParticleSpec,
+}
+
+impl Setup {
+    pub fn new(a: &BenchArgs) -> Result<Setup> {
+        let input = Input::open(&a.input)?;
+        let all = input.frames();
+        let frames = match &a.frames {
+            Some(f) => crate::render::parse_frames(f, all.len())?,
+            None => vec![0],
+        };
+        Ok(Setup {
+            base: a.sampling.params(&a.view, &a.particles)?,
+            base_tf: a.view.base_tf()?,
+            input,
+            all,
+            frames,
+            spec: a.particles.spec()?,
+        })
+    }
+}
+
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -148,15 +178,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
     sampling.mode = Some(crate::view::Mode::Adaptive);
     let backend = crate::render::open_backend(&sampling, crate::view::Mode::Adaptive)?;
     let gpu = backend.gpu();
-    let base = a.sampling.params(&a.view, &a.particles)?;
-    let base_tf = a.view.base_tf()?;
-    let input = Input::open(&a.input)?;
-    let all = input.frames();
-    let frames: Vec<usize> = match &a.frames {
-        Some(f) => crate::render::parse_frames(f, all.len())?,
-        None => vec![0],
-    };
-    let spec = a.particles.spec()?;
+    let Setup {
+        base,
+        base_tf,
+        input,
+        all,
+        frames,
+        spec,
+    } = Setup::new(&a)?;
     let per_view = tols.len() * (1 + usize::from(gpu.is_some()))
         + usize::from(!a.no_reference)
         + usize::from(a.object_space)

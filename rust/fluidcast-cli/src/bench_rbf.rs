@@ -4,13 +4,13 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_io::{Arrays, Input};
+use fluidcast_io::Arrays;
 use fluidcast_rbf::{RbfField, MAX_LEAF_SIZE};
 use fluidcast_render::render_rbf;
 use fluidcast_sph::Particles;
 use serde_json::json;
 
-use crate::bench::BenchArgs;
+use crate::bench::{BenchArgs, Setup};
 
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
@@ -49,15 +49,14 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         Some(s) => leaf_sizes(s)?,
         None => vec![a.rbf.leaf_size],
     };
-    let base = a.sampling.params(&a.view, &a.particles)?;
-    let base_tf = a.view.base_tf()?;
-    let input = Input::open(&a.input)?;
-    let all = input.frames();
-    let frames: Vec<usize> = match &a.frames {
-        Some(f) => crate::render::parse_frames(f, all.len())?,
-        None => vec![0],
-    };
-    let spec = a.particles.spec()?;
+    let Setup {
+        base,
+        base_tf,
+        input,
+        all,
+        frames,
+        spec,
+    } = Setup::new(a)?;
     let mut opts = a.rbf.options(a.particles.array.is_some())?;
     let pb = crate::render::progress_bar(frames.len() * leaves.len() * a.views, "renders");
     let mut setup = None;
