@@ -521,3 +521,112 @@ fn edge_cases_of_the_queries_and_the_input() {
         ));
     }
 }
+
+#[test]
+fn attribute_maps_interpolate_between_their_points_and_clamp_beyond() {
+    let m = AttributeMap::parse("0,1,1,0.5").unwrap();
+    for (t, want) in [
+        (-1.0, 1.0),
+        (0.0, 1.0),
+        (0.5, 0.75),
+        (0.8, 0.6),
+        (1.0, 0.5),
+        (2.0, 0.5),
+    ] {
+        assert!(
+            (m.eval(t) - want).abs() < 1e-12,
+            "{t}: {} vs {want}",
+            m.eval(t)
+        );
+    }
+    // Unsorted points are sorted; a repeated position is a step.
+    let step = AttributeMap::parse("1,0,0,1,0.5,1,0.5,0").unwrap();
+    assert_eq!(step.eval(0.25), 1.0);
+    assert_eq!(step.eval(0.75), 0.0);
+    let three = AttributeMap::parse("0.2,2,0.6,4,1,0").unwrap();
+    assert!((three.eval(0.4) - 3.0).abs() < 1e-12 && (three.eval(0.8) - 2.0).abs() < 1e-12);
+    assert_eq!(three.eval(0.1), 2.0);
+    assert_eq!(AttributeMap::constant(0.3).eval(0.9), 0.3);
+    assert_eq!(Colouring::Pre.name(), "pre");
+    assert_eq!(
+        Colouring::ALL.map(Colouring::name),
+        ["post", "pre", "density"],
+        "the GPU's constants are named after these"
+    );
+}
+
+/// `RbfField::from_sph` holds the SPH field: its sums equal fluidcast-sph's own (Σ V A W,
+/// Σ V W; Σ m W) at random points.
+#[test]
+fn sph_fields_sum_as_the_sph_crate_does() {
+    use fluidcast_sph::{FieldKind, Kernel};
+    let p = cloud(2000, 61, (0.08, 0.08));
+    let grid = p.neighbour_grid();
+    for kernel in [Kernel::CubicSpline, Kernel::WendlandC2] {
+        for kind in [FieldKind::Csph, FieldKind::Density] {
+            let field = RbfField::from_sph(&p, kernel, kind, 8).unwrap();
+            assert_eq!(field.profile(), fluidcast_rbf::Profile::Sph(kernel, kind));
+            let mut inside = 0;
+            for x in points(200, 67) {
+                let (ours, theirs) = (field.sample(x), p.sample(&grid, kernel, x));
+                let (a, b) = match kind {
+                    FieldKind::Density => (ours.density, theirs.density),
+                    _ => (ours.weighted[0], theirs.weighted),
+                };
+                assert!(
+                    (a - b).abs() <= 1e-9 * b.abs().max(1.0),
+                    "{kernel} {kind:?}: {a} vs {b}"
+                );
+                if kind == FieldKind::Csph {
+                    assert!(
+                        (ours.density - theirs.shepard).abs() <= 1e-9 * theirs.shepard.max(1.0)
+                    );
+                }
+                inside += usize::from(b != 0.0);
+            }
+            assert!(inside > 50, "{inside}");
+        }
+    }
+}
+
+#[test]
+fn field_statistics_and_options() {
+    let tf = tf(0.0, 1.0);
+    let mut p = pair(0.0, 1.0);
+    p.radii = vec![0.1, 0.3];
+    p.positions.push([1.0, 1.0, 1.0]);
+    p.radii.push(0.2);
+    p.volumes.push(1.0);
+    p.masses.push(1.0);
+    p.values.push(0.5);
+    let field = RbfField::build(&p, &tf, &RbfOptions::default()).unwrap();
+    assert_eq!(field.median_radius(), f64::from(0.2f32));
+    assert_eq!(
+        field.memory_bytes(),
+        field.bvh().memory_bytes() + 3 * (4 + 12 + 4 + 4),
+        "the tree, and per particle weight, theta, base radius and map position"
+    );
+    // No particle: no attribute (not NaN).
+    let empty = RbfField::build(&Particles::default(), &tf, &RbfOptions::default()).unwrap();
+    assert_eq!(empty.sample([0.0; 3]).attribute(), None);
+    assert_eq!(empty.median_radius(), 0.0);
+    // The global radius must be positive and finite.
+    for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+        let o = RbfOptions {
+            radius: Some(bad),
+            ..Default::default()
+        };
+        assert!(
+            matches!(RbfField::build(&p, &tf, &o), Err(RbfError::GlobalRadius(_))),
+            "{bad}"
+        );
+    }
+    // Hilbert keys ignore bits above the lattice's.
+    for x in [[1u32, 2, 3], [7, 0, 5]] {
+        let high = x.map(|c| c + (1 << 3));
+        assert_eq!(
+            fluidcast_rbf::hilbert_key(high, 3),
+            fluidcast_rbf::hilbert_key(x, 3)
+        );
+    }
+}
