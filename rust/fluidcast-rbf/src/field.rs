@@ -100,8 +100,9 @@ impl AttributeMap {
     pub fn eval(&self, t: f64) -> f64 {
         let p = &self.points;
         let k = p.partition_point(|q| q.0 < t);
+        // Between a (left of t) and b (at or right of t), so b.0 > a.0.
         match (k.checked_sub(1).and_then(|i| p.get(i)), p.get(k)) {
-            (Some(a), Some(b)) if b.0 > a.0 => a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0),
+            (Some(a), Some(b)) => a.1 + (b.1 - a.1) * (t - a.0) / (b.0 - a.0),
             (_, Some(b)) => b.1,
             (Some(a), None) => a.1,
             (None, None) => 0.0,

@@ -461,7 +461,11 @@ fn the_public_layout_walks_to_the_same_particles() {
 /// centres) is far below that of clusters of the same size in the input order.
 #[test]
 fn hilbert_clusters_are_compact() {
-    let p = cloud(8000, 51, (0.0, 0.0));
+    // Far from the origin and 50 units across, so that the lattice's offset and scale count.
+    let mut p = cloud(8000, 51, (0.0, 0.0));
+    for c in &mut p.positions {
+        *c = c.map(|v| 1000.0 + 50.0 * v);
+    }
     let zero = vec![1e-6f32; p.len()];
     let bvh = ClusterBvh::build(&p.positions, &zero, 8).unwrap();
     let diag = |ids: &[u32]| {
@@ -482,7 +486,7 @@ fn hilbert_clusters_are_compact() {
         |order: &[u32]| order.chunks(8).map(diag).sum::<f64>() / order.len().div_ceil(8) as f64;
     let input: Vec<u32> = (0..p.len() as u32).collect();
     let (sorted, unsorted) = (mean(bvh.order()), mean(&input));
-    // 8 random points of the unit cube span about 1.2; 8 neighbours of 8,000 about 0.15.
+    // 8 random points of the cube span about 0.6 of its side; 8 neighbours of 8,000 about 0.08.
     assert!(
         sorted < 0.25 * unsorted,
         "Hilbert {sorted} vs input order {unsorted}"
@@ -491,13 +495,20 @@ fn hilbert_clusters_are_compact() {
 
 #[test]
 fn edge_cases_of_the_queries_and_the_input() {
-    // A hidden particle is not found even at its exact centre, by a point or a ray.
-    let c = [[0.1f32, 0.2, 0.3], [0.5, 0.5, 0.5]];
-    let bvh = ClusterBvh::build(&c, &[0.0, 0.2], 1).unwrap();
-    assert!(bvh_within(&bvh, [0.1, 0.2, 0.3]).is_empty());
+    // A hidden particle is not found even at its exact centre, by a point or a ray, though
+    // its cluster's box (made by a visible neighbour) holds it.
+    let c = [[0.1f32, 0.2, 0.3], [0.1, 0.2, 0.35]];
+    let bvh = ClusterBvh::build(&c, &[0.0, 0.2], 8).unwrap();
+    let centre = c[0].map(f64::from);
+    assert_eq!(bvh_within(&bvh, centre), vec![1]);
     let mut hits = 0;
-    bvh.for_each_on_ray([0.1, 0.2, -1.0], [0.0, 0.0, 1.0], (0.0, 9.0), |_| hits += 1);
-    assert_eq!(hits, 0);
+    let o = [centre[0], centre[1], -1.0];
+    bvh.for_each_on_ray(o, [0.0, 0.0, 1.0], (0.0, 9.0), |h| {
+        assert_eq!(bvh.particle(h.slot), 1);
+        hits += 1;
+    });
+    assert_eq!(hits, 1);
+    hits = 0;
     // A ray without a direction finds nothing (and does not divide by it).
     bvh.for_each_on_ray([0.5, 0.5, 0.5], [0.0; 3], (0.0, 9.0), |_| hits += 1);
     assert_eq!(hits, 0);
@@ -594,16 +605,19 @@ fn field_statistics_and_options() {
     let tf = tf(0.0, 1.0);
     let mut p = pair(0.0, 1.0);
     p.radii = vec![0.1, 0.3];
-    p.positions.push([1.0, 1.0, 1.0]);
-    p.radii.push(0.2);
-    p.volumes.push(1.0);
-    p.masses.push(1.0);
-    p.values.push(0.5);
+    // Five visible radii (median 0.2) and two hidden ones, which do not count.
+    for (k, r) in [0.2f32, 0.05, 0.4, 0.0, 0.0].into_iter().enumerate() {
+        p.positions.push([1.0, 1.0, k as f32]);
+        p.radii.push(r);
+        p.volumes.push(1.0);
+        p.masses.push(1.0);
+        p.values.push(0.5);
+    }
     let field = RbfField::build(&p, &tf, &RbfOptions::default()).unwrap();
     assert_eq!(field.median_radius(), f64::from(0.2f32));
     assert_eq!(
         field.memory_bytes(),
-        field.bvh().memory_bytes() + 3 * (4 + 12 + 4 + 4),
+        field.bvh().memory_bytes() + 7 * (4 + 12 + 4 + 4),
         "the tree, and per particle weight, theta, base radius and map position"
     );
     // No particle: no attribute (not NaN).
@@ -621,6 +635,26 @@ fn field_statistics_and_options() {
             "{bad}"
         );
     }
+    // One bit a side: the curve is the Gray code through the cube's corners, from the origin
+    // (key = x·4 + (x⊕y)·2 + (x⊕y⊕z), inverted here cell by cell).
+    let gray = [
+        [0, 0, 0],
+        [0, 0, 1],
+        [0, 1, 1],
+        [0, 1, 0],
+        [1, 1, 0],
+        [1, 1, 1],
+        [1, 0, 1],
+        [1, 0, 0],
+    ];
+    for (k, c) in gray.iter().enumerate() {
+        assert_eq!(fluidcast_rbf::hilbert_key(*c, 1), k as u64, "{c:?}");
+    }
+    assert_eq!(
+        fluidcast_rbf::hilbert_key([0; 3], 16),
+        0,
+        "the curve starts at the origin"
+    );
     // Hilbert keys ignore bits above the lattice's.
     for x in [[1u32, 2, 3], [7, 0, 5]] {
         let high = x.map(|c| c + (1 << 3));
