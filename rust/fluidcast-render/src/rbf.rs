@@ -494,6 +494,15 @@ impl Marcher<'_> {
     /// Particle `hit` entering the march at sample `t` (steps of `dt`, `dd = |d|²`).
     #[inline]
     fn enter(&self, h: &RayHit, hit: u32, t: f64, (dd, dt): (f64, f64)) -> Active {
+        if self.field.profile() != Profile::Gaussian {
+            // SPH kernels are evaluated at each sample: no stepping state.
+            return Active {
+                hit,
+                phi: 0.0,
+                ratio: 0.0,
+                ratio_step: 0.0,
+            };
+        }
         let r = f64::from(self.field.bvh().sphere(h.slot)[3]);
         let w = f64::from(self.field.weight_theta(h.slot).0);
         let a = SIGMAS * SIGMAS * 0.5 / (r * r) * dd;
