@@ -58,6 +58,11 @@ pub struct BenchArgs {
     /// per column).
     #[arg(long)]
     perspective_grid: bool,
+    /// Particle level of detail: compare the default render of per-view cuts through the
+    /// particle hierarchy at these tolerances (pixels, comma-separated, e.g. 2,4,8) with full
+    /// detail: time per view, particles and the error against the full-detail image.
+    #[arg(long)]
+    pub(crate) lod: Option<String>,
     /// Write the results as JSON here.
     #[arg(long)]
     pub(crate) json: Option<PathBuf>,
@@ -93,7 +98,7 @@ impl Setup {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
     }
@@ -165,7 +170,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
         bail!("--views must be at least 1");
     }
     if a.particles.rbf() {
+        if a.lod.is_some() {
+            bail!("--lod: the RBF field (--field rbf) has its own cluster hierarchy; drop --lod");
+        }
         return crate::bench_rbf::run(&a);
+    }
+    if let Some(l) = &a.lod {
+        return crate::bench_lod::run(&a, &crate::bench_lod::tolerances(l)?);
     }
     let mut tols: Vec<Option<f64>> = vec![None];
     for t in a.tolerances.split(',').filter(|t| !t.trim().is_empty()) {

@@ -13,8 +13,10 @@ macro_rules! out {
 }
 
 mod bench;
+mod bench_lod;
 mod bench_rbf;
 mod info;
+mod lod;
 mod options;
 mod probe;
 mod rbf;
