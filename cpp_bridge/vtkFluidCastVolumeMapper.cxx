@@ -504,6 +504,7 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.backend = this->Backend;
     s.adapter = this->Adapter ? this->Adapter : "";
     s.memory_limit_mib = this->MemoryLimit;
+    s.lod_tolerance = this->LODTolerance;
     r.configure(s);
     fluidcast::RenderInfo info = r.prepare();
     this->LastParticleCount = static_cast<vtkIdType>(info.particles);
@@ -830,6 +831,7 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
   os << indent << "MemoryLimit: " << this->MemoryLimit << " MiB\n";
+  os << indent << "LODTolerance: " << this->LODTolerance << " px\n";
   os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";

@@ -312,6 +312,11 @@ void vtkFluidCastRepresentation::SetMemoryLimit(double mib)
   this->Mapper->SetMemoryLimit(mib);
 }
 
+void vtkFluidCastRepresentation::SetLODTolerance(double px)
+{
+  this->Mapper->SetLODTolerance(px);
+}
+
 void vtkFluidCastRepresentation::SetField(int field)
 {
   static const char* const names[] = { "csph", "sph", "density", "rbf" };

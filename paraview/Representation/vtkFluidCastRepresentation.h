@@ -57,6 +57,8 @@ public:
   void SetErrorTolerance(double e);
   /** The mapper's MemoryLimit (MiB; 0: none): render in screen tiles to stay within it. */
   void SetMemoryLimit(double mib);
+  /** The mapper's LODTolerance (pixels; 0: every particle): particle level of detail. */
+  void SetLODTolerance(double px);
   void SetBackend(int backend);
   void SetAdapter(const char* name);
   ///@}

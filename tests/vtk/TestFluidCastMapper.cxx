@@ -317,6 +317,7 @@ struct Settings
   int passes = 1;                  // RBF: still renders accumulated (ProgressivePasses), --spp
   bool shadows = false;            // RBF: Shadows and --shadows
   std::vector<double> radiusMap;   // RBF: AddRBFRadiusMapPoint and --radius-map
+  double lod = 0;                  // > 0: LODTolerance and --lod
   double Tolerance() const { return tolerance == "off" ? 0.0 : std::stod(tolerance); }
   /** Largest channel difference (of 255) allowed between the mapper and the CLI. */
   int Allowed() const
@@ -374,6 +375,7 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
   s.Show(ug, array, Property(tf, unit));
   s.mapper->SetErrorTolerance(st.Tolerance());
   s.mapper->SetSupportRadius(st.supportRadius);
+  s.mapper->SetLODTolerance(st.lod);
   if (!st.kernel.empty())
   {
     s.mapper->SetKernel(st.kernel.c_str());
@@ -450,6 +452,10 @@ bool RenderPair(vtkUnstructuredGrid* ug, const std::string& data, const std::str
   if (st.shadows)
   {
     cmd << " --shadows";
+  }
+  if (st.lod > 0)
+  {
+    cmd << " --lod " << st.lod;
   }
   for (size_t k = 0; k < st.radiusMap.size(); ++k)
   {
@@ -560,6 +566,10 @@ int Properties(const std::string& data, const std::string& array, const std::str
   Settings component = base;
   component.component = 2;
   check("vector_component", component);
+  // Particle level of detail: the same cut of the view as the CLI's --lod.
+  Settings lod = base;
+  lod.lod = 12;
+  check("lod", lod);
   // The RBF field (Morrical et al. 2023) and its options; 8 still renders accumulate the
   // passes the CLI's --spp 8 averages (the same passes: same offsets).
   Settings rbf = base;

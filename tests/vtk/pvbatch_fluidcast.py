@@ -223,6 +223,10 @@ if properties:
     status = status or (0 if property_follows_cli("kernel", extra=("--kernel", "gaussian"))
                         else 1)
     display.FluidCastKernel = "Cubic spline"
+    # Particle level of detail: the same cut of the view as the CLI's --lod.
+    display.FluidCastLODTolerance = 12.0
+    status = status or (0 if property_follows_cli("lod", extra=("--lod", "12")) else 1)
+    display.FluidCastLODTolerance = 0.0
     # The RBF field: still renders of the view accumulate passes up to Progressive Passes,
     # which then equal the CLI's --spp (the same passes), with and without shadows.
     display.FluidCastField = "RBF"

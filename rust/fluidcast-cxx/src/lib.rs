@@ -25,6 +25,7 @@ use std::time::Instant;
 
 use fluidcast_backend::{Backend, BackendError};
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
+use fluidcast_lod::LodHierarchy;
 use fluidcast_render::{IsoField, PlanParams, RenderParams, Surfaces, SURFACE_THRESHOLD};
 use fluidcast_sph::{
     Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
@@ -71,6 +72,10 @@ mod ffi {
         /// Most memory (MiB) a render may take beyond the particles it holds: the view is
         /// rendered in screen tiles to stay within it, to the same image; <= 0: no limit.
         memory_limit_mib: f64,
+        /// Particle level of detail (Fraedrich et al. 2010): each part of the view is drawn
+        /// at the coarsest level of merged particles whose cells are at most this many pixels
+        /// at its depth; <= 0: every particle. The hierarchy is built once per data set.
+        lod_tolerance: f64,
         /// `field` "rbf" (Morrical et al. 2023's field, the transfer function's opacity as
         /// the density map): "post" (blend the attribute, then colour it) or "pre" (colour
         /// each particle, then blend).
@@ -325,6 +330,8 @@ struct Prepared {
     surface: Vec<bool>,
     info: ffi::RenderInfo,
     rbf: rbf::RbfState,
+    /// The particles' level-of-detail hierarchy, built on the first render that asks for it.
+    lod: Option<LodHierarchy>,
 }
 
 fn new_renderer() -> Box<Renderer> {
@@ -480,6 +487,12 @@ impl Renderer {
             }
             if !s.support_radius.is_finite() {
                 return Err(format!("support radius {} is not finite", s.support_radius));
+            }
+            if !s.lod_tolerance.is_finite() {
+                return Err(format!(
+                    "level-of-detail tolerance {} is not finite (<= 0: off)",
+                    s.lod_tolerance
+                ));
             }
             let same_particles = self.settings.as_ref().is_some_and(|o| {
                 o.scalars == s.scalars
@@ -683,6 +696,7 @@ impl Renderer {
                 surface,
                 info,
                 rbf: rbf::RbfState::default(),
+                lod: None,
             });
         }
         Ok(self.prepared.as_ref().expect("prepared above"))
@@ -760,6 +774,9 @@ impl Renderer {
             self.prepared()?;
             params.surfaces = self.surfaces_now(&s.scalars)?;
             if is_rbf(&s.field) || s.shadows {
+                if s.lod_tolerance > 0.0 {
+                    return Err(format!("{name}: level of detail (LODTolerance) does not apply to the RBF field and shadows, which have their own cluster hierarchy; set it to 0"));
+                }
                 if s.memory_limit_mib > 0.0 {
                     return Err(format!("{name}: the RBF field and shadows do not render in screen tiles (a memory limit) yet"));
                 }
@@ -782,8 +799,19 @@ impl Renderer {
                 ));
             }
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
+            if s.lod_tolerance > 0.0 {
+                self.build_lod(&params)?;
+            }
             let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
+            };
+            let cut = match (&p.lod, s.lod_tolerance > 0.0) {
+                (Some(h), true) => Some(lod_cut(h, &camera, (width, height), s.lod_tolerance)?),
+                _ => None,
+            };
+            let (particles, flags, lod_note) = match &cut {
+                Some(c) => (&c.particles, Some(c.surface.as_slice()), c.note.as_str()),
+                None => (&p.particles, Some(p.surface.as_slice()), ""),
             };
             let surfaces = params.surfaces.is_some();
             let (device, note) = if surfaces {
@@ -792,6 +820,11 @@ impl Renderer {
             } else {
                 (b.renderer.device(), b.renderer.note().unwrap_or(""))
             };
+            let note = [note, lod_note]
+                .into_iter()
+                .filter(|n| !n.is_empty())
+                .collect::<Vec<_>>()
+                .join("\n");
             let draw = |q: &fluidcast_sph::Particles,
                         flags: Option<&[bool]>,
                         prm: &RenderParams|
@@ -808,7 +841,7 @@ impl Renderer {
             };
             let tile = match s.memory_limit_mib {
                 m if m > 0.0 => fluidcast_render::tile_particles_within(
-                    p.particles.len(),
+                    particles.len(),
                     width,
                     height,
                     (m * 1048576.0).min(u64::MAX as f64) as u64,
@@ -816,23 +849,72 @@ impl Renderer {
                 .map_err(|e| format!("{name}: MemoryLimit {m} MiB: {e}"))?,
                 _ => None,
             };
-            let flags = Some(p.surface.as_slice());
             let (image, stats) = match tile {
                 Some(max) => fluidcast_render::render_in_tiles(
-                    &p.particles,
+                    particles,
                     flags,
                     &camera,
                     &params,
                     (max, 0),
                     draw,
                 ),
-                None => draw(&p.particles, flags, &params),
+                None => draw(particles, flags, &params),
             }
             .map_err(|e| format!("{name} ({device}): {e}"))?;
             let r = fluidcast_render::Rendered { image, stats };
-            Ok(finish(&r, (rgba, depth), t, p, note, device))
+            Ok(finish(&r, (rgba, depth), t, p, &note, device))
         })
     }
+}
+
+impl Renderer {
+    /// Builds the level-of-detail hierarchy of the prepared particles, once per data set.
+    /// Refused with iso-surfaces of another array, whose values are full detail's.
+    fn build_lod(&mut self, params: &RenderParams) -> Result<(), String> {
+        if let Some(s) = &params.surfaces {
+            if matches!(s.field, IsoField::Attribute(Some(_))) {
+                return Err(format!("{}: level of detail (LODTolerance) with iso-surfaces of another array: the hierarchy merges the rendered array only; set LODTolerance to 0 or draw surfaces of the rendered array", self.name()));
+            }
+        }
+        let name = self.name();
+        let p = self
+            .prepared
+            .as_mut()
+            .ok_or("fluidcast: particles missing")?;
+        if p.lod.is_none() {
+            let h = LodHierarchy::build(p.particles.clone())
+                .map_err(|e| format!("{name}: level of detail: {e}"))?;
+            p.lod = Some(h);
+        }
+        Ok(())
+    }
+}
+
+/// One view's cut through the hierarchy, its surface flags, and a line saying how much.
+struct Cut {
+    particles: Particles,
+    surface: Vec<bool>,
+    note: String,
+}
+
+fn lod_cut(
+    h: &LodHierarchy,
+    camera: &Camera,
+    (width, height): (u32, u32),
+    tolerance: f64,
+) -> Result<Cut, String> {
+    let frame = camera.frame(width, height).map_err(|e| e.to_string())?;
+    let c = h.cut(&frame, tolerance).map_err(|e| e.to_string())?;
+    let note = format!(
+        "level of detail {tolerance} px: {} of {} particles",
+        c.particles.len(),
+        h.full_detail().len()
+    );
+    Ok(Cut {
+        surface: c.particles.surface_flags(SURFACE_THRESHOLD),
+        particles: c.particles,
+        note,
+    })
 }
 
 /// Copies a frame into the caller's buffers and says what it did.
@@ -942,6 +1024,7 @@ mod tests {
             backend: 1,
             adapter: String::new(),
             memory_limit_mib: 0.0,
+            lod_tolerance: 0.0,
             rbf_classification: "post".into(),
             rbf_radius: 0.0,
             samples_per_pixel: 1,
@@ -1034,6 +1117,79 @@ mod tests {
         s.memory_limit_mib = 0.0;
         r.configure(&s).unwrap();
         assert_eq!(render(&mut r).unwrap(), whole);
+    }
+
+    /// LODTolerance: the bridge draws the library's cut of its particles for the view (the
+    /// same image as rendering that cut directly), says how many it drew, and draws every
+    /// particle again at 0; the RBF field refuses it.
+    #[test]
+    fn level_of_detail_draws_the_cut_of_the_view() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let xyz = cube(59, 0.5 / 58.0);
+        let n = xyz.len() / 3;
+        r.begin_data("big cube");
+        r.set_points_f64(&xyz).unwrap();
+        let vals: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin()).collect();
+        r.add_point_array_f32("value", 1, &vals).unwrap();
+        let mut s = settings();
+        s.support_radius = 0.02;
+        r.configure(&s).unwrap();
+        let (w, h) = (40u32, 30u32);
+        let render = |r: &mut Renderer| {
+            let mut rgba = vec![0f32; 4 * 40 * 30];
+            let mut depth = vec![0f32; 40 * 30];
+            r.render(w, h, &[], &mut rgba, &mut depth)
+                .map(|info| (rgba, depth, info))
+        };
+        let (whole, _, _) = render(&mut r).unwrap();
+        s.lod_tolerance = 2.0;
+        r.configure(&s).unwrap();
+        let (rgba, depth, info) = render(&mut r).unwrap();
+        // The library's cut of the same particles, rendered directly.
+        let p = r.prepared().unwrap().particles.clone();
+        let cam = r.camera.clone().unwrap();
+        let hier = LodHierarchy::build(p).unwrap();
+        let cut = hier.cut(&cam.frame(w, h).unwrap(), 2.0).unwrap();
+        assert!(
+            cut.particles.len() * 4 < n,
+            "{} of {n}",
+            cut.particles.len()
+        );
+        let flags = cut.particles.surface_flags(SURFACE_THRESHOLD);
+        let tf = r.tf.clone().unwrap();
+        let params = RenderParams {
+            width: w,
+            height: h,
+            adaptive: PlanParams {
+                tolerance: Some(0.004),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let want =
+            fluidcast_render::render_adaptive(&cut.particles, Some(&flags), &cam, &tf, &params)
+                .unwrap();
+        let want_rgba: Vec<f32> = want.image.rgba.iter().flatten().copied().collect();
+        assert_eq!(rgba, want_rgba);
+        assert_eq!(depth, want.image.depth);
+        assert_ne!(rgba, whole);
+        let says = format!("of {n} particles");
+        assert!(
+            info.notes.contains("level of detail 2 px") && info.notes.contains(&says),
+            "{}",
+            info.notes
+        );
+        s.lod_tolerance = 0.0;
+        r.configure(&s).unwrap();
+        assert_eq!(render(&mut r).unwrap().0, whole);
+        s.lod_tolerance = 2.0;
+        s.field = "rbf".into();
+        r.configure(&s).unwrap();
+        let e = render(&mut r).unwrap_err();
+        assert!(e.contains("LODTolerance"), "{e}");
+        s.lod_tolerance = f64::NAN;
+        assert!(r.configure(&s).unwrap_err().contains("not finite"));
     }
 
     /// With iso values the bridge draws surfaces (on the CPU, whatever the backend) exactly
