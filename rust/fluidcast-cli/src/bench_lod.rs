@@ -132,7 +132,9 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
                 let t = Instant::now();
                 let c = h.cut(&frame, tol)?;
                 row.cut_ms.push(ms(t));
-                let (img, s_ms, r_ms) = render(&c.particles, None, &cam, tf, &base)
+                // Nothing merged: full detail, whose surface flags are at hand.
+                let flags = surface.as_deref().filter(|_| c.is_full_detail());
+                let (img, s_ms, r_ms) = render(&c.particles, flags, &cam, tf, &base)
                     .with_context(|| format!("rendering {} at --lod {tol}", file.display()))?;
                 row.surface_ms.push(s_ms);
                 row.render_ms.push(r_ms);

@@ -806,7 +806,7 @@ impl Renderer {
                 return Err("fluidcast: particles or backend missing".into());
             };
             let cut = match (&p.lod, s.lod_tolerance > 0.0) {
-                (Some(h), true) => Some(lod_cut(h, &camera, (width, height), s.lod_tolerance)?),
+                (Some(h), true) => lod_cut(h, &camera, (width, height), s.lod_tolerance)?,
                 _ => None,
             };
             let (particles, flags, lod_note) = match &cut {
@@ -897,24 +897,28 @@ struct Cut {
     note: String,
 }
 
+/// `None` when the cut merged nothing: the prepared particles are drawn as without it.
 fn lod_cut(
     h: &LodHierarchy,
     camera: &Camera,
     (width, height): (u32, u32),
     tolerance: f64,
-) -> Result<Cut, String> {
+) -> Result<Option<Cut>, String> {
     let frame = camera.frame(width, height).map_err(|e| e.to_string())?;
     let c = h.cut(&frame, tolerance).map_err(|e| e.to_string())?;
+    if c.is_full_detail() {
+        return Ok(None);
+    }
     let note = format!(
         "level of detail {tolerance} px: {} of {} particles",
         c.particles.len(),
         h.full_detail().len()
     );
-    Ok(Cut {
+    Ok(Some(Cut {
         surface: c.particles.surface_flags(SURFACE_THRESHOLD),
         particles: c.particles,
         note,
-    })
+    }))
 }
 
 /// Copies a frame into the caller's buffers and says what it did.
@@ -1183,6 +1187,12 @@ mod tests {
         s.lod_tolerance = 0.0;
         r.configure(&s).unwrap();
         assert_eq!(render(&mut r).unwrap().0, whole);
+        // A tolerance that merges nothing draws the particles as without it.
+        s.lod_tolerance = 1e-3;
+        r.configure(&s).unwrap();
+        let (same, _, info) = render(&mut r).unwrap();
+        assert_eq!(same, whole);
+        assert!(!info.notes.contains("level of detail"), "{}", info.notes);
         s.lod_tolerance = 2.0;
         s.field = "rbf".into();
         r.configure(&s).unwrap();

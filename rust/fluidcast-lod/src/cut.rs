@@ -11,11 +11,20 @@ use rayon::prelude::*;
 /// The particles one view renders, and how many were taken from each level.
 #[derive(Debug, Clone)]
 pub struct LodCut {
-    /// The chosen nodes as particles, in the hierarchy's (Morton) order.
+    /// The chosen nodes as particles, in the hierarchy's (Morton) order: when nothing was
+    /// merged ([`LodCut::is_full_detail`]), [`LodHierarchy::full_detail`] itself.
     pub particles: Particles,
     /// Particles taken from each level (index 0: full detail), counted at the level whose
     /// merge made them (a node carried up unchanged counts where it was made).
     pub per_level: Vec<usize>,
+}
+
+impl LodCut {
+    /// Every particle at full detail: the cut is [`LodHierarchy::full_detail`], particle for
+    /// particle, so what was computed for it (surface flags) applies.
+    pub fn is_full_detail(&self) -> bool {
+        self.per_level.iter().skip(1).all(|&k| k == 0)
+    }
 }
 
 impl LodHierarchy {

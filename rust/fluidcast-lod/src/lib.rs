@@ -166,9 +166,10 @@ impl LodHierarchy {
         Some(a as usize..b as usize)
     }
 
-    /// Node `i` of `level` is a full-detail particle (at level 0, or carried up unchanged).
-    pub fn is_full_detail(&self, level: usize, i: usize) -> bool {
-        i < self.level_len(level) && self.levels[level].origin(level, i).0 == 0
+    /// The level whose merge made node `i` of `level`'s particle (0: a full-detail particle;
+    /// below `level`: carried up unchanged); `None` when there is no such node.
+    pub fn made_at(&self, level: usize, i: usize) -> Option<usize> {
+        (i < self.level_len(level)).then(|| self.levels[level].origin(level, i).0)
     }
 
     /// Full detail: the input particles in the hierarchy's order.

@@ -96,7 +96,7 @@ fn merges_keep_volume_mass_and_weighted_mean_and_cover_every_descendant() {
                     q.radius
                 );
             }
-            assert_eq!(h.is_full_detail(l, i), d.len() == 1);
+            assert_eq!(h.made_at(l, i) == Some(0), d.len() == 1);
             if d.len() > 1 {
                 merged += 1;
                 // The smallest cover: the farthest child's support touches the boundary.
@@ -180,6 +180,11 @@ fn a_cut_at_zero_pixels_is_full_detail() {
     assert_eq!(c.particles.volumes, f.volumes);
     assert_eq!(c.particles.values, f.values);
     assert_eq!(c.per_level[0], f.len());
+    assert!(c.is_full_detail());
+    assert!(!h
+        .cut(&frame(10.0, false, 1.0, 300), 1e9)
+        .unwrap()
+        .is_full_detail());
 }
 
 #[test]
@@ -268,6 +273,8 @@ fn far_outliers_widen_the_grid_instead_of_failing() {
     for k in 0..3 {
         assert!(close(got[k], want[k], 1e-5));
     }
+    // Level 0's cells widened to span 2e7 in 2^21 cells, not the median size.
+    assert!(h.cell_size(0) > 1.0, "{}", h.cell_size(0));
 }
 
 #[test]
@@ -295,4 +302,178 @@ fn bad_input_is_refused_with_the_reason() {
     for t in [-1.0, f64::NAN, f64::INFINITY] {
         assert!(matches!(h.cut(&f, t), Err(LodError::BadTolerance(_))));
     }
+}
+
+/// The lower corner of the particles' bounds (as the hierarchy's grid takes it).
+fn lower_corner(p: &Particles) -> [f64; 3] {
+    let mut lo = [f64::INFINITY; 3];
+    for x in &p.positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(f64::from(x[k]));
+        }
+    }
+    lo
+}
+
+/// Level 0's cell of each particle, as integer coordinates.
+fn cells0(p: &Particles, lo: [f64; 3], c0: f64) -> Vec<[u64; 3]> {
+    p.positions
+        .iter()
+        .map(|x| [0, 1, 2].map(|k| ((f64::from(x[k]) - lo[k]) / c0).floor().max(0.0) as u64))
+        .collect()
+}
+
+#[test]
+fn merged_nodes_are_the_interior_blocks_of_their_level() {
+    let full = block(16, 0.01, 0.4);
+    let h = LodHierarchy::build(full).unwrap();
+    let full = h.full_detail().clone();
+    // Level 0's cells: the median particle size (every volume is one cell here).
+    assert_eq!(h.cell_size(0), f64::from(0.01f32 * 0.01 * 0.01).cbrt());
+    let lo = lower_corner(&full);
+    let c0 = h.cell_size(0);
+    let cells = cells0(&full, lo, c0);
+    let mut merged = 0;
+    for l in 1..h.levels() {
+        let k = (h.cell_size(l) / c0).log2().round() as u32;
+        assert_eq!(h.cell_size(l), c0 * f64::powi(2.0, k as i32));
+        let occupied: std::collections::HashSet<[u64; 3]> =
+            cells.iter().map(|c| c.map(|v| v >> k)).collect();
+        for i in 0..h.level_len(l) {
+            if h.made_at(l, i) != Some(l) {
+                continue;
+            }
+            merged += 1;
+            let d = descendants(&h, l, i);
+            let cell = cells[d[0]].map(|v| v >> k);
+            for &j in &d {
+                assert_eq!(
+                    cells[j].map(|v| v >> k),
+                    cell,
+                    "level {l} node {i}: two cells"
+                );
+            }
+            for axis in 0..3 {
+                for step in [-1i64, 1] {
+                    let mut n = cell;
+                    let v = n[axis] as i64 + step;
+                    assert!(v >= 0, "level {l} node {i} merged at the grid's edge");
+                    n[axis] = v as u64;
+                    assert!(
+                        occupied.contains(&n),
+                        "level {l} node {i} merged at an edge"
+                    );
+                }
+            }
+        }
+        assert_eq!(h.node(l, h.level_len(l)), None);
+        assert_eq!(h.made_at(l, h.level_len(l)), None);
+    }
+    assert!(merged > 50, "{merged}");
+}
+
+#[test]
+fn particles_without_volume_merge_to_plain_means_sized_by_their_radius() {
+    let mut p = block(10, 0.01, 0.3);
+    for v in &mut p.volumes {
+        *v = 0.0;
+    }
+    let h = LodHierarchy::build(p).unwrap();
+    // Size: half the support radius (2 spacings here).
+    assert!((h.cell_size(0) - 0.01).abs() < 1e-9, "{}", h.cell_size(0));
+    let mut checked = 0;
+    for l in 1..h.levels() {
+        for i in 0..h.level_len(l) {
+            let c: Vec<_> = h
+                .children(l, i)
+                .unwrap()
+                .map(|j| h.node(l - 1, j).unwrap())
+                .collect();
+            if c.len() < 2 {
+                continue;
+            }
+            // No volume to weigh by: the children's plain means.
+            let q = h.node(l, i).unwrap();
+            let n = c.len() as f64;
+            let a: f64 = c.iter().map(|b| f64::from(b.value)).sum::<f64>() / n;
+            assert!((f64::from(q.value) - a).abs() < 1e-5, "{} vs {a}", q.value);
+            for k in 0..3 {
+                let x: f64 = c.iter().map(|b| f64::from(b.position[k])).sum::<f64>() / n;
+                assert!((f64::from(q.position[k]) - x).abs() < 1e-6);
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 0);
+}
+
+#[test]
+fn memory_counts_every_level() {
+    let h = LodHierarchy::build(block(12, 0.01, 0.3)).unwrap();
+    let n = h.full_detail().len();
+    let mut want = 28 * n;
+    for l in 1..h.levels() {
+        let made_here = (0..h.level_len(l))
+            .filter(|&i| h.made_at(l, i) == Some(l))
+            .count();
+        want += 13 * h.level_len(l) + 28 * made_here;
+    }
+    assert_eq!(h.memory_bytes(), want);
+}
+
+/// The cut written out here: top down, a node at level l >= 1 that is not a carried
+/// full-detail particle is taken when it lies wholly outside the view or its level's cells fit
+/// `tol` pixels at its nearest depth.
+fn cut_here(h: &LodHierarchy, f: &ViewFrame, tol: f64) -> Vec<usize> {
+    let mut per_level = vec![0; h.levels()];
+    let mut stack: Vec<(usize, usize)> = (0..h.level_len(h.levels() - 1))
+        .map(|i| (h.levels() - 1, i))
+        .collect();
+    while let Some((l, i)) = stack.pop() {
+        let made = h.made_at(l, i).unwrap();
+        let q = h.node(l, i).unwrap();
+        let v = f.to_view(DVec3::from(q.position.map(f64::from)));
+        let r = f64::from(q.radius);
+        let tx = f.tan_half * f.aspect;
+        let outside = v.z < -r
+            || (v.x.abs() - v.z * tx) / (1.0 + tx * tx).sqrt() > r
+            || (v.y.abs() - v.z * f.tan_half) / (1.0 + f.tan_half * f.tan_half).sqrt() > r;
+        let near = v.z - r;
+        let fits =
+            near > 0.0 && h.cell_size(l) <= tol * 2.0 * near * f.tan_half / f64::from(f.height);
+        if made == 0 || l == 0 || outside || fits {
+            per_level[made] += 1;
+        } else {
+            stack.extend(h.children(l, i).unwrap().map(|c| (l - 1, c)));
+        }
+    }
+    per_level
+}
+
+#[test]
+fn perspective_cuts_judge_each_node_at_its_nearest_depth() {
+    // A deep block seen end-on from close by: its near and far ends differ in pixel size.
+    let mut p = block(14, 0.01, 0.3);
+    for x in &mut p.positions {
+        x[2] *= 6.0;
+    }
+    for v in &mut p.volumes {
+        *v *= 6.0;
+    }
+    let h = LodHierarchy::build(p).unwrap();
+    let mut cam = Camera {
+        position: [0.065, 0.065, 1.2],
+        focal_point: [0.065, 0.065, 0.0],
+        ..Camera::default()
+    };
+    cam.view_angle = 40.0;
+    let mut differ = false;
+    for (size, tol) in [(40, 2.0), (40, 3.0), (60, 3.0), (30, 2.5)] {
+        let f = cam.frame(size, size).unwrap();
+        let want = cut_here(&h, &f, tol);
+        let got = h.cut(&f, tol).unwrap().per_level;
+        assert_eq!(got, want, "{size} px, {tol}");
+        differ |= want[1..].iter().any(|&k| k > 0) && want[0] > h.level_len(0) / 10;
+    }
+    assert!(differ, "no view mixes levels");
 }
