@@ -124,6 +124,19 @@ impl ScalarType {
 
     /// Decodes `bytes` into `f64`s; an error when they are not a whole number of values.
     pub fn decode(self, bytes: &[u8], big_endian: bool) -> Result<Vec<f64>, String> {
+        let mut out = Vec::with_capacity(bytes.len() / self.size());
+        self.decode_into(bytes, big_endian, &mut out)?;
+        Ok(out)
+    }
+
+    /// Decodes `bytes` into `f64`s appended to `out`; an error when they are not a whole
+    /// number of values.
+    pub fn decode_into(
+        self,
+        bytes: &[u8],
+        big_endian: bool,
+        out: &mut Vec<f64>,
+    ) -> Result<(), String> {
         use ScalarType::*;
         let n = self.size();
         if !bytes.len().is_multiple_of(n) {
@@ -135,21 +148,18 @@ impl ScalarType {
         }
         macro_rules! conv {
             ($t:ty) => {
-                bytes
-                    .chunks_exact(n)
-                    .map(|c| {
-                        let mut a = [0u8; std::mem::size_of::<$t>()];
-                        a.copy_from_slice(c);
-                        (if big_endian {
-                            <$t>::from_be_bytes(a)
-                        } else {
-                            <$t>::from_le_bytes(a)
-                        }) as f64
-                    })
-                    .collect()
+                out.extend(bytes.chunks_exact(n).map(|c| {
+                    let mut a = [0u8; std::mem::size_of::<$t>()];
+                    a.copy_from_slice(c);
+                    (if big_endian {
+                        <$t>::from_be_bytes(a)
+                    } else {
+                        <$t>::from_le_bytes(a)
+                    }) as f64
+                }))
             };
         }
-        Ok(match self {
+        match self {
             I8 => conv!(i8),
             U8 => conv!(u8),
             I16 => conv!(i16),
@@ -160,7 +170,8 @@ impl ScalarType {
             U64 => conv!(u64),
             F32 => conv!(f32),
             F64 => conv!(f64),
-        })
+        }
+        Ok(())
     }
 }
 

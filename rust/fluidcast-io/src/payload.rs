@@ -214,6 +214,64 @@ impl BlockHeader {
 
     /// Decompresses all blocks of `data` (which must hold them all).
     fn inflate(&self, data: &[u8], c: Compressor) -> Result<Vec<u8>, String> {
+        // Reserve from the bytes present, never from the header's claim; the vector grows as
+        // real data arrives, capped per block.
+        let mut out = Vec::with_capacity(self.total_compressed()?.saturating_mul(4));
+        self.inflate_each(data, c, |block| {
+            out.extend_from_slice(block);
+            Ok(())
+        })?;
+        Ok(out)
+    }
+
+    /// Decompresses all blocks of `data` straight into values of type `st`: no buffer of
+    /// the whole array's bytes beside the values (a value may straddle two blocks).
+    fn inflate_values(
+        &self,
+        data: &[u8],
+        c: Compressor,
+        st: ScalarType,
+        big_endian: bool,
+    ) -> Result<Vec<f64>, String> {
+        let size = st.size();
+        let mut out = Vec::with_capacity(self.total_compressed()?.saturating_mul(4) / size);
+        let mut carry: Vec<u8> = Vec::with_capacity(size);
+        let mut total = 0usize;
+        self.inflate_each(data, c, |block| {
+            total += block.len();
+            let mut rest = block;
+            if !carry.is_empty() {
+                let take = (size - carry.len()).min(rest.len());
+                carry.extend_from_slice(&rest[..take]);
+                rest = &rest[take..];
+                if carry.len() == size {
+                    st.decode_into(&carry, big_endian, &mut out)?;
+                    carry.clear();
+                }
+            }
+            let whole = rest.len() - rest.len() % size;
+            st.decode_into(&rest[..whole], big_endian, &mut out)?;
+            carry.extend_from_slice(&rest[whole..]);
+            Ok(())
+        })?;
+        if !carry.is_empty() {
+            return Err(format!(
+                "{total} bytes are not a whole number of {} values",
+                st.vtk_name()
+            ));
+        }
+        Ok(out)
+    }
+
+    /// Decompresses all blocks of `data` (which must hold them all), handing each to `sink`
+    /// in order. Blocks are independent: a batch of them is decompressed in parallel, each
+    /// into its own buffer.
+    fn inflate_each(
+        &self,
+        data: &[u8],
+        c: Compressor,
+        mut sink: impl FnMut(&[u8]) -> Result<(), String>,
+    ) -> Result<(), String> {
         let nb = self.compressed.len();
         let total_c = self.total_compressed()?;
         if total_c > data.len() {
@@ -222,10 +280,6 @@ impl BlockHeader {
                 data.len()
             ));
         }
-        // Reserve from the bytes present, never from the header's claim; the vector grows as
-        // real data arrives, capped per block. Blocks are independent: a batch of them is
-        // decompressed in parallel, each into its own buffer, then appended in order.
-        let mut out = Vec::with_capacity(total_c.saturating_mul(4));
         let mut spans = Vec::with_capacity(nb);
         let mut pos = 0usize;
         for &cs in &self.compressed {
@@ -253,10 +307,10 @@ impl BlockHeader {
                 })
                 .collect();
             for one in blocks {
-                out.extend_from_slice(&one?);
+                sink(&one?)?;
             }
         }
-        Ok(out)
+        Ok(())
     }
 }
 
@@ -287,6 +341,31 @@ pub(crate) fn decode_raw(
             let hl = BlockHeader::len_for(h.compressed.len(), ctx);
             let data = h.inflate(src.get(hl..).unwrap_or_default(), c)?;
             Ok((data.into(), hl + h.total_compressed()?))
+        }
+    }
+}
+
+/// Decodes one raw binary payload (header + data) starting at `src` into values of type
+/// `st`, as [`decode_raw`] and [`ScalarType::decode`] would together, without the whole
+/// array's decompressed bytes beside the values. Returns them and how many bytes of `src`
+/// the payload took.
+pub(crate) fn decode_raw_values(
+    src: &[u8],
+    ctx: Ctx,
+    expected: Option<usize>,
+    st: ScalarType,
+) -> Result<(Vec<f64>, usize), String> {
+    match ctx.compressor {
+        None => {
+            let (bytes, used) = decode_raw(src, ctx, expected)?;
+            Ok((st.decode(&bytes, ctx.big_endian)?, used))
+        }
+        Some(c) => {
+            let h = BlockHeader::parse(src, ctx, expected)?;
+            let hl = BlockHeader::len_for(h.compressed.len(), ctx);
+            let data = src.get(hl..).unwrap_or_default();
+            let values = h.inflate_values(data, c, st, ctx.big_endian)?;
+            Ok((values, hl + h.total_compressed()?))
         }
     }
 }

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use quick_xml::events::{BytesStart, Event};
 
-use crate::payload::{decode_base64, decode_raw, Compressor, Ctx};
+use crate::payload::{decode_base64, decode_raw_values, Compressor, Ctx};
 use crate::{Arrays, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
 /// Attributes of one element as owned strings.
@@ -592,12 +592,13 @@ fn decode_values(
                 .ok_or_else(|| {
                     format!("offset {off} is beyond the end of the appended data (file truncated?)")
                 })?;
-            let (raw, used) = if app.base64 {
-                let (raw, used) = decode_base64(src, ctx, expected_bytes)?;
-                (raw.into(), used)
-            } else {
-                decode_raw(src, ctx, expected_bytes)?
-            };
+            if !app.base64 {
+                // Straight to values: no copy of the array's decompressed bytes beside them.
+                let (values, used) = decode_raw_values(src, ctx, expected_bytes, st)?;
+                app.check_extent(off, used)?;
+                return Ok(values);
+            }
+            let (raw, used) = decode_base64(src, ctx, expected_bytes)?;
             app.check_extent(off, used)?;
             raw
         }

@@ -99,22 +99,27 @@ impl Particles {
     /// H_j/2 of it (itself included). Interior particles see a full ball of neighbours; at a
     /// free surface (or where the data ends, e.g. at walls without boundary particles) about
     /// half of it is empty, so 0.75 flags a layer about one particle spacing thick.
+    ///
+    /// Memory beside the particles: the neighbour grid while counting, then two bytes a
+    /// particle (the counts, saturating at 65,535) and the flags; the median comes from a
+    /// histogram of the counts, not a sorted copy. (This runs over all particles before a
+    /// memory limit's screen tiles can split the work.)
     pub fn surface_flags(&self, threshold: f64) -> Vec<bool> {
-        let grid = NeighbourGrid::new(&self.positions, 0.5 * self.max_radius());
-        let counts: Vec<u32> = (0..self.len())
-            .into_par_iter()
-            .map(|j| {
-                let mut n = 0u32;
-                grid.for_each_near(self.positions[j], 0.5 * self.radii[j], |_, _| n += 1);
-                n
-            })
-            .collect();
-        let mut sorted = counts.clone();
-        sorted.sort_unstable();
-        let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0) as f64;
+        let counts: Vec<u16> = {
+            let grid = NeighbourGrid::new(&self.positions, 0.5 * self.max_radius());
+            (0..self.len())
+                .into_par_iter()
+                .map(|j| {
+                    let mut n = 0u32;
+                    grid.for_each_near(self.positions[j], 0.5 * self.radii[j], |_, _| n += 1);
+                    n.min(u32::from(u16::MAX)) as u16
+                })
+                .collect()
+        };
+        let median = f64::from(median_count(&counts));
         counts
             .iter()
-            .map(|&c| (c as f64) < threshold * median)
+            .map(|&c| f64::from(c) < threshold * median)
             .collect()
     }
 
@@ -128,9 +133,47 @@ impl Particles {
     }
 }
 
+/// The middle element of `counts` sorted (index len/2), from a histogram; 0 when empty.
+fn median_count(counts: &[u16]) -> u16 {
+    let mut hist = vec![0usize; usize::from(u16::MAX) + 1];
+    for &c in counts {
+        hist[usize::from(c)] += 1;
+    }
+    let mut below = 0;
+    for (v, &k) in hist.iter().enumerate() {
+        below += k;
+        if below > counts.len() / 2 {
+            return v as u16;
+        }
+    }
+    0
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn median_count_is_the_sorted_middle() {
+        let mut x = 7u32;
+        for n in [0usize, 1, 2, 3, 10, 1001] {
+            let c: Vec<u16> = (0..n)
+                .map(|_| {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    (x % 300) as u16
+                })
+                .collect();
+            let mut sorted = c.clone();
+            sorted.sort_unstable();
+            assert_eq!(
+                median_count(&c),
+                sorted.get(n / 2).copied().unwrap_or(0),
+                "{n}"
+            );
+        }
+    }
 
     fn jittered(n: usize, value: impl Fn([f32; 3]) -> f32) -> Particles {
         // Irregular particles: a lattice with deterministic jitter and varying volumes/radii.
