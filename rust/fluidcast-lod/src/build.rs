@@ -303,3 +303,25 @@ pub(crate) fn merge(children: &[LodNode]) -> LodNode {
         value: a as f32,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn morton_bits_interleave_and_come_back() {
+        let mut x = 0x2545_f491u64;
+        for _ in 0..1000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let v = x & 0x1f_ffff;
+            let s = spread(v);
+            for b in 0..21 {
+                assert_eq!((s >> (3 * b)) & 1, (v >> b) & 1, "bit {b} of {v:#x}");
+            }
+            assert_eq!(s & !0x1249_2492_4924_9249, 0);
+            assert_eq!(compact(s), v);
+        }
+    }
+}

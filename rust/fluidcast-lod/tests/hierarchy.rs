@@ -434,13 +434,24 @@ fn cut_here(h: &LodHierarchy, f: &ViewFrame, tol: f64) -> Vec<usize> {
         let q = h.node(l, i).unwrap();
         let v = f.to_view(DVec3::from(q.position.map(f64::from)));
         let r = f64::from(q.radius);
-        let tx = f.tan_half * f.aspect;
-        let outside = v.z < -r
-            || (v.x.abs() - v.z * tx) / (1.0 + tx * tx).sqrt() > r
-            || (v.y.abs() - v.z * f.tan_half) / (1.0 + f.tan_half * f.tan_half).sqrt() > r;
-        let near = v.z - r;
-        let fits =
-            near > 0.0 && h.cell_size(l) <= tol * 2.0 * near * f.tan_half / f64::from(f.height);
+        let (outside, fits) = match f.parallel {
+            Some(s) => (
+                v.x.abs() > s * f.aspect + r || v.y.abs() > s + r,
+                h.cell_size(l) <= tol * 2.0 * s / f64::from(f.height),
+            ),
+            None => {
+                let tx = f.tan_half * f.aspect;
+                let ty = f.tan_half;
+                let near = v.z - r;
+                (
+                    v.z < -r
+                        || v.x.abs() - v.z * tx > r * (1.0 + tx * tx).sqrt()
+                        || v.y.abs() - v.z * ty > r * (1.0 + ty * ty).sqrt(),
+                    near > 0.0
+                        && h.cell_size(l) <= tol * 2.0 * near * f.tan_half / f64::from(f.height),
+                )
+            }
+        };
         if made == 0 || l == 0 || outside || fits {
             per_level[made] += 1;
         } else {
@@ -476,4 +487,63 @@ fn perspective_cuts_judge_each_node_at_its_nearest_depth() {
         differ |= want[1..].iter().any(|&k| k > 0) && want[0] > h.level_len(0) / 10;
     }
     assert!(differ, "no view mixes levels");
+    // Views that leave much of the block outside: off to one side, below, looking away,
+    // and parallel views zoomed in; at a tolerance that merges nothing inside the view.
+    let mut outside_merged = 0;
+    for (pos, focal, parallel, scale) in [
+        ([0.2, 0.065, 0.5], [0.3, 0.065, 0.0], false, 1.0),
+        ([0.065, -0.1, 0.4], [0.065, -0.2, 0.0], false, 1.0),
+        ([0.065, 0.065, 0.3], [0.065, 0.065, 1.0], false, 1.0),
+        ([0.0, 0.0, 2.0], [0.0, 0.0, 0.0], true, 0.03),
+        ([0.13, 0.05, 2.0], [0.13, 0.05, 0.0], true, 0.02),
+    ] {
+        let c = Camera {
+            position: pos,
+            focal_point: focal,
+            parallel_projection: parallel,
+            parallel_scale: scale,
+            ..Camera::default()
+        };
+        for aspect in [(200, 100), (100, 200)] {
+            let f = c.frame(aspect.0, aspect.1).unwrap();
+            let want = cut_here(&h, &f, 0.0);
+            assert_eq!(
+                h.cut(&f, 0.0).unwrap().per_level,
+                want,
+                "{pos:?} {aspect:?}"
+            );
+            outside_merged += want[1..].iter().sum::<usize>();
+        }
+    }
+    assert!(outside_merged > 100, "{outside_merged}");
+}
+
+#[test]
+fn the_grid_starts_at_the_particles_lower_corner_and_uses_their_median_size() {
+    let mut p = block(12, 0.01, 0.4);
+    for (i, x) in p.positions.iter_mut().enumerate() {
+        for c in x.iter_mut() {
+            *c += 0.537;
+        }
+        p.volumes[i] *= 0.5 + (i % 5) as f32 * 0.3;
+    }
+    let mut sizes: Vec<f64> = p.volumes.iter().map(|&v| f64::from(v).cbrt()).collect();
+    sizes.sort_by(f64::total_cmp);
+    let median = sizes[sizes.len() / 2];
+    let h = LodHierarchy::build(p).unwrap();
+    assert_eq!(h.cell_size(0), median);
+    let full = h.full_detail().clone();
+    let lo = lower_corner(&full);
+    let cells = cells0(&full, lo, median);
+    let mut merged = 0;
+    for l in 1..h.levels() {
+        let k = (h.cell_size(l) / median).log2().round() as u32;
+        for i in (0..h.level_len(l)).filter(|&i| h.made_at(l, i) == Some(l)) {
+            let d = descendants(&h, l, i);
+            let cell = cells[d[0]].map(|v| v >> k);
+            assert!(d.iter().all(|&j| cells[j].map(|v| v >> k) == cell));
+            merged += 1;
+        }
+    }
+    assert!(merged > 10, "{merged}");
 }
