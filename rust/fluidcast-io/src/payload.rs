@@ -241,17 +241,19 @@ impl BlockHeader {
             total += block.len();
             let mut rest = block;
             if !carry.is_empty() {
-                let take = (size - carry.len()).min(rest.len());
-                carry.extend_from_slice(&rest[..take]);
-                rest = &rest[take..];
+                let take = size.saturating_sub(carry.len()).min(rest.len());
+                let (head, tail) = rest.split_at_checked(take).unwrap_or((rest, &[]));
+                carry.extend_from_slice(head);
+                rest = tail;
                 if carry.len() == size {
                     st.decode_into(&carry, big_endian, &mut out)?;
                     carry.clear();
                 }
             }
             let whole = rest.len() - rest.len() % size;
-            st.decode_into(&rest[..whole], big_endian, &mut out)?;
-            carry.extend_from_slice(&rest[whole..]);
+            let (values, left) = rest.split_at_checked(whole).unwrap_or((&[], rest));
+            st.decode_into(values, big_endian, &mut out)?;
+            carry.extend_from_slice(left);
             Ok(())
         })?;
         if !carry.is_empty() {
@@ -458,4 +460,67 @@ pub(crate) fn decode_base64(
         )
     };
     Ok((h.inflate(&data, c)?, used))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A zlib payload as VTK writes it (UInt32 header, little endian): `bytes` in blocks of
+    /// `block` bytes.
+    fn zlib_payload(bytes: &[u8], block: usize) -> Vec<u8> {
+        let blocks: Vec<Vec<u8>> = bytes
+            .chunks(block)
+            .map(|b| {
+                let mut e =
+                    flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+                e.write_all(b).unwrap();
+                e.finish().unwrap()
+            })
+            .collect();
+        let last = bytes.len() % block;
+        let mut out = Vec::new();
+        for w in [blocks.len(), block, last] {
+            out.extend_from_slice(&(w as u32).to_le_bytes());
+        }
+        for b in &blocks {
+            out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+        }
+        for b in &blocks {
+            out.extend_from_slice(b);
+        }
+        out
+    }
+
+    fn ctx() -> Ctx {
+        Ctx {
+            big_endian: false,
+            header: ScalarType::U32,
+            compressor: Some(Compressor::Zlib),
+        }
+    }
+
+    /// Values that straddle blocks (blocks of 12, 13 and 1 bytes for 8-byte doubles) decode
+    /// as the whole array's bytes do; a partial value at the end is an error.
+    #[test]
+    fn values_decode_straight_from_blocks_that_split_them() {
+        let values: Vec<f64> = (0..101).map(|i| i as f64 * 0.37 - 5.0).collect();
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        for block in [1, 12, 13, 64, 4096] {
+            let p = zlib_payload(&bytes, block);
+            let (got, used) =
+                decode_raw_values(&p, ctx(), Some(bytes.len()), ScalarType::F64).unwrap();
+            assert_eq!(got, values, "blocks of {block}");
+            assert_eq!(used, p.len());
+            let (raw, _) = decode_raw(&p, ctx(), Some(bytes.len())).unwrap();
+            assert_eq!(ScalarType::F64.decode(&raw, false).unwrap(), got);
+        }
+        let short = &bytes[..bytes.len() - 3];
+        let p = zlib_payload(short, 12);
+        let e = decode_raw_values(&p, ctx(), None, ScalarType::F64).unwrap_err();
+        assert!(
+            e.contains("805 bytes are not a whole number of Float64 values"),
+            "{e}"
+        );
+    }
 }

@@ -577,7 +577,7 @@ fn decode_values(
                 .copied()
                 .filter(|c| !c.is_ascii_whitespace())
                 .collect();
-            decode_base64(&text, ctx, expected_bytes)?.0.into()
+            decode_base64(&text, ctx, expected_bytes)?.0
         }
         "appended" => {
             let app = appended.ok_or("format is 'appended' but the file has no <AppendedData>")?;
