@@ -16,7 +16,9 @@ pub struct NeighbourGrid<'a> {
 
 impl<'a> NeighbourGrid<'a> {
     /// Builds the grid with the given cell size (world units, > 0). The cell size is grown
-    /// if the grid would need far more cells than there are particles.
+    /// (by half, until it fits) where the grid would need more than 4 cells a particle, so
+    /// that its table takes at most 16 bytes a particle: a thin sheet of 18M particles
+    /// spread over a tank asked for 108M cells (433 MB) at half the support radius.
     pub fn new(positions: &'a [[f32; 3]], cell_size: f32) -> NeighbourGrid<'a> {
         let (lo, hi) = if positions.is_empty() {
             ([0.0; 3], [0.0; 3])
@@ -24,7 +26,7 @@ impl<'a> NeighbourGrid<'a> {
             bounds(positions)
         };
         let mut cell = cell_size.max(f32::MIN_POSITIVE);
-        let budget = (positions.len() * 8 + 64) as f64;
+        let budget = (positions.len() * 4 + 64) as f64;
         let dims = loop {
             let d =
                 [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
