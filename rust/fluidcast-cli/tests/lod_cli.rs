@@ -4,29 +4,9 @@ mod common;
 
 use fluidcast_image::Image;
 
-fn max_diff(a: &Image, b: &Image) -> f32 {
-    a.rgba
-        .iter()
-        .zip(&b.rgba)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0, f32::max)
-}
-
 /// Renders the sample at 120x90 by velocity with `extra`: (exit code, stderr).
 fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
-    let sample = common::sample();
-    let mut args = vec![
-        "render",
-        sample.to_str().unwrap(),
-        "--array",
-        "velocity",
-        "--size",
-        "120x90",
-    ];
-    args.extend_from_slice(extra);
-    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
-    let (code, _, err) = common::run(&args);
-    (code, err)
+    common::render_sample(&["--array", "velocity", "--size", "120x90"], extra, out)
 }
 
 #[test]
@@ -42,7 +22,7 @@ fn lod_renders_a_cut_and_says_how_much() {
     // 0 pixels: every particle, in the hierarchy's order (sums in another order: f32 rounding).
     let (zero, err) = run(&["--lod", "0"], "zero.exr");
     assert!(err.contains("6000 of 6000 particles"), "{err}");
-    assert!(max_diff(&full, &zero) < 1e-5);
+    assert!(common::max_diff(&full, &zero) < 1e-5);
     let stats = path("s.json");
     let (cut, err) = run(
         &["--lod", "4", "--stats", stats.to_str().unwrap()],
@@ -63,7 +43,7 @@ fn lod_renders_a_cut_and_says_how_much() {
         Some(n),
         "the renderer drew the cut"
     );
-    let d = max_diff(&full, &cut);
+    let d = common::max_diff(&full, &cut);
     assert!(d > 0.0 && d < 0.02, "{d}");
 }
 

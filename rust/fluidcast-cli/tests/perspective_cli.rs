@@ -6,21 +6,18 @@ use fluidcast_image::Image;
 
 /// Renders the sample at 200x150 with `extra`: (exit code, stderr).
 fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
-    let sample = common::sample();
-    let mut args = vec![
-        "render",
-        sample.to_str().unwrap(),
-        "--array",
-        "velocity",
-        "--size",
-        "200x150",
-        "--azimuth",
-        "30",
-    ];
-    args.extend_from_slice(extra);
-    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
-    let (code, _, err) = common::run(&args);
-    (code, err)
+    common::render_sample(
+        &[
+            "--array",
+            "velocity",
+            "--size",
+            "200x150",
+            "--azimuth",
+            "30",
+        ],
+        extra,
+        out,
+    )
 }
 
 /// One grid column per pixel gives the reference's image (single precision grid), with and

@@ -6,27 +6,7 @@ use fluidcast_image::Image;
 
 /// Renders the sample at 120x90 with the RBF field and `extra`: (exit code, stderr).
 fn render(extra: &[&str], out: &std::path::Path) -> (Option<i32>, String) {
-    let sample = common::sample();
-    let mut args = vec![
-        "render",
-        sample.to_str().unwrap(),
-        "--field",
-        "rbf",
-        "--size",
-        "120x90",
-    ];
-    args.extend_from_slice(extra);
-    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
-    let (code, _, err) = common::run(&args);
-    (code, err)
-}
-
-fn max_diff(a: &Image, b: &Image) -> f32 {
-    a.rgba
-        .iter()
-        .zip(&b.rgba)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0, f32::max)
+    common::render_sample(&["--field", "rbf", "--size", "120x90"], extra, out)
 }
 
 /// The options reach the image: classification, the radius map, the passes and the seed,
@@ -54,14 +34,21 @@ fn rbf_options_change_the_image_as_they_say() {
     }
     assert!(s["rbf_memory_bytes"].as_u64().unwrap() > 0);
     let again = run(&vel, "again.exr");
-    assert_eq!(max_diff(&post, &again), 0.0, "same seed, same image");
+    assert_eq!(
+        common::max_diff(&post, &again),
+        0.0,
+        "same seed, same image"
+    );
     let pre = run(
         &[&vel[..], &["--classification", "pre"]].concat(),
         "pre.exr",
     );
-    assert!(max_diff(&post, &pre) > 0.01, "pre differs from post");
+    assert!(
+        common::max_diff(&post, &pre) > 0.01,
+        "pre differs from post"
+    );
     let seed = run(&[&vel[..], &["--seed", "7"]].concat(), "seed.exr");
-    let d = max_diff(&post, &seed);
+    let d = common::max_diff(&post, &seed);
     assert!(
         d > 0.0 && d < 0.2,
         "another seed: other noise, same image ({d})"
@@ -75,9 +62,9 @@ fn rbf_options_change_the_image_as_they_say() {
         "radius 0 hides all"
     );
     let white = run(&[&vel[..], &["--noise", "white"]].concat(), "white.exr");
-    assert!(max_diff(&post, &white) > 0.0, "other offsets");
+    assert!(common::max_diff(&post, &white) > 0.0, "other offsets");
     let spp = run(&[&vel[..], &["--spp", "4"]].concat(), "spp.exr");
-    assert!(max_diff(&post, &spp) > 0.0);
+    assert!(common::max_diff(&post, &spp) > 0.0);
     let density = run(&[], "density.exr");
     assert!(density.rgba.iter().any(|p| p[3] > 0.3));
     // Shadows: the same opacity, darker colours (ambient 0.25 and the fluid's own shadow).

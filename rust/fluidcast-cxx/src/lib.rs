@@ -1074,28 +1074,39 @@ mod tests {
         }
     }
 
-    /// MemoryLimit: a limit that tiles the view renders the same image; one too small for
-    /// any tile is an error naming the limit, and the next render without it works.
-    #[test]
-    fn memory_limits_tile_the_view_to_the_same_image() {
+    /// A renderer holding a 59^3 lattice cube of support radius 0.02 valued by `value`
+    /// (index -> value), its settings, and a 40x30 render of it: (RGBA, depth, info).
+    fn big_cube(value: impl Fn(usize) -> f32) -> (Box<Renderer>, ffi::Settings, usize) {
         let mut r = new_renderer();
         ready(&mut r);
         let xyz = cube(59, 0.5 / 58.0);
         let n = xyz.len() / 3;
         r.begin_data("big cube");
         r.set_points_f64(&xyz).unwrap();
-        let vals: Vec<f32> = (0..n).map(|i| (i % 7) as f32).collect();
+        let vals: Vec<f32> = (0..n).map(value).collect();
         r.add_point_array_f32("value", 1, &vals).unwrap();
         let mut s = settings();
         s.support_radius = 0.02;
         r.configure(&s).unwrap();
+        (r, s, n)
+    }
+
+    type Frame = (Vec<f32>, Vec<f32>, ffi::RenderInfo);
+
+    fn render_40x30(r: &mut Renderer) -> Result<Frame, String> {
+        let mut rgba = vec![0f32; 4 * 40 * 30];
+        let mut depth = vec![0f32; 40 * 30];
+        r.render(40, 30, &[], &mut rgba, &mut depth)
+            .map(|info| (rgba, depth, info))
+    }
+
+    /// MemoryLimit: a limit that tiles the view renders the same image; one too small for
+    /// any tile is an error naming the limit, and the next render without it works.
+    #[test]
+    fn memory_limits_tile_the_view_to_the_same_image() {
+        let (mut r, mut s, n) = big_cube(|i| (i % 7) as f32);
         let (w, h) = (40u32, 30u32);
-        let render = |r: &mut Renderer| {
-            let mut rgba = vec![0f32; 4 * 40 * 30];
-            let mut depth = vec![0f32; 40 * 30];
-            r.render(w, h, &[], &mut rgba, &mut depth)
-                .map(|_| (rgba, depth))
-        };
+        let render = |r: &mut Renderer| render_40x30(r).map(|(rgba, depth, _)| (rgba, depth));
         let whole = render(&mut r).unwrap();
         // Room for the image, 9 bytes a particle and a minimal tile: fewer than n per tile.
         let fixed = (w * h) as f64 * 64.0 + n as f64 * 9.0;
@@ -1128,24 +1139,9 @@ mod tests {
     /// particle again at 0; the RBF field refuses it.
     #[test]
     fn level_of_detail_draws_the_cut_of_the_view() {
-        let mut r = new_renderer();
-        ready(&mut r);
-        let xyz = cube(59, 0.5 / 58.0);
-        let n = xyz.len() / 3;
-        r.begin_data("big cube");
-        r.set_points_f64(&xyz).unwrap();
-        let vals: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin()).collect();
-        r.add_point_array_f32("value", 1, &vals).unwrap();
-        let mut s = settings();
-        s.support_radius = 0.02;
-        r.configure(&s).unwrap();
+        let (mut r, mut s, n) = big_cube(|i| (i as f32 * 0.37).sin());
         let (w, h) = (40u32, 30u32);
-        let render = |r: &mut Renderer| {
-            let mut rgba = vec![0f32; 4 * 40 * 30];
-            let mut depth = vec![0f32; 40 * 30];
-            r.render(w, h, &[], &mut rgba, &mut depth)
-                .map(|info| (rgba, depth, info))
-        };
+        let render = render_40x30;
         let (whole, _, _) = render(&mut r).unwrap();
         s.lod_tolerance = 2.0;
         r.configure(&s).unwrap();

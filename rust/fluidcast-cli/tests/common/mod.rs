@@ -1,4 +1,5 @@
-//! What the CLI tests share: the shipped sample and running the `fluidcast` binary.
+//! What the CLI tests share: the shipped sample, running the `fluidcast` binary on it, and
+//! comparing images.
 #![allow(dead_code, clippy::unwrap_used)] // each test file uses part of it; tests may fail loudly
 
 use std::path::PathBuf;
@@ -26,4 +27,28 @@ pub fn run(args: &[&str]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&o.stdout).to_string(),
         err,
     )
+}
+
+/// Renders the sample with `options` then `extra`, into `out`: (exit code, stderr).
+pub fn render_sample(
+    options: &[&str],
+    extra: &[&str],
+    out: &std::path::Path,
+) -> (Option<i32>, String) {
+    let sample = sample();
+    let mut args = vec!["render", sample.to_str().unwrap()];
+    args.extend_from_slice(options);
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+    let (code, _, err) = run(&args);
+    (code, err)
+}
+
+/// The largest difference of any RGBA channel.
+pub fn max_diff(a: &fluidcast_image::Image, b: &fluidcast_image::Image) -> f32 {
+    a.rgba
+        .iter()
+        .zip(&b.rgba)
+        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0, f32::max)
 }
