@@ -212,11 +212,24 @@ impl BlockHeader {
             .ok_or_else(|| "compressed block sizes overflow".to_string())
     }
 
+    /// The blocks' compressed bytes, checked to be present in `data`: what a buffer may be
+    /// reserved from (never from the header's claim alone).
+    fn present(&self, data: &[u8]) -> Result<usize, String> {
+        let total_c = self.total_compressed()?;
+        if total_c > data.len() {
+            return Err(format!(
+                "compressed blocks need {total_c} bytes, the file holds {} (file truncated?)",
+                data.len()
+            ));
+        }
+        Ok(total_c)
+    }
+
     /// Decompresses all blocks of `data` (which must hold them all).
     fn inflate(&self, data: &[u8], c: Compressor) -> Result<Vec<u8>, String> {
         // Reserve from the bytes present, never from the header's claim; the vector grows as
         // real data arrives, capped per block.
-        let mut out = Vec::with_capacity(self.total_compressed()?.saturating_mul(4));
+        let mut out = Vec::with_capacity(self.present(data)?.saturating_mul(4));
         self.inflate_each(data, c, |block| {
             out.extend_from_slice(block);
             Ok(())
@@ -234,7 +247,7 @@ impl BlockHeader {
         big_endian: bool,
     ) -> Result<Vec<f64>, String> {
         let size = st.size();
-        let mut out = Vec::with_capacity(self.total_compressed()?.saturating_mul(4) / size);
+        let mut out = Vec::with_capacity(self.present(data)?.saturating_mul(4) / size);
         let mut carry: Vec<u8> = Vec::with_capacity(size);
         let mut total = 0usize;
         self.inflate_each(data, c, |block| {
@@ -275,13 +288,7 @@ impl BlockHeader {
         mut sink: impl FnMut(&[u8]) -> Result<(), String>,
     ) -> Result<(), String> {
         let nb = self.compressed.len();
-        let total_c = self.total_compressed()?;
-        if total_c > data.len() {
-            return Err(format!(
-                "compressed blocks need {total_c} bytes, the file holds {} (file truncated?)",
-                data.len()
-            ));
-        }
+        self.present(data)?;
         let mut spans = Vec::with_capacity(nb);
         let mut pos = 0usize;
         for &cs in &self.compressed {
@@ -515,6 +522,12 @@ mod tests {
             let (raw, _) = decode_raw(&p, ctx(), Some(bytes.len())).unwrap();
             assert_eq!(ScalarType::F64.decode(&raw, false).unwrap(), got);
         }
+        // A header whose compressed sizes claim 2.6 GB the payload does not hold: refused
+        // before anything is reserved from the claim.
+        let mut lying = zlib_payload(&bytes, 64);
+        lying[12..16].copy_from_slice(&(u32::MAX / 2).to_le_bytes());
+        let e = decode_raw_values(&lying, ctx(), None, ScalarType::F64).unwrap_err();
+        assert!(e.contains("the file holds"), "{e}");
         let short = &bytes[..bytes.len() - 3];
         let p = zlib_payload(short, 12);
         let e = decode_raw_values(&p, ctx(), None, ScalarType::F64).unwrap_err();
