@@ -98,6 +98,33 @@ impl Setup {
     }
 }
 
+/// Milliseconds since `t`.
+pub(crate) fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// The particles of one frame, reading only the arrays `spec` needs.
+pub(crate) fn frame_particles(
+    input: &Input,
+    file: &std::path::Path,
+    spec: &fluidcast_sph::ParticleSpec,
+) -> Result<Particles> {
+    let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
+    Ok(Particles::from_source(&ds, spec)?)
+}
+
+/// View `v` of `views` on the camera orbit: `first` turned by 360°·v/views about its view-up.
+pub(crate) fn orbit(
+    first: &fluidcast_view::Camera,
+    v: usize,
+    views: usize,
+) -> fluidcast_view::Camera {
+    let mut cam = first.clone();
+    cam.azimuth(360.0 * v as f64 / views as f64);
+    cam.orthogonalize_view_up();
+    cam
+}
+
 pub(crate) fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return f64::NAN;
@@ -213,8 +240,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut surface_ms: Vec<f64> = Vec::new();
     for &fi in &frames {
         let file = &all[fi].1;
-        let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
-        let particles = Particles::from_source(&ds, &spec)?;
+        let particles = frame_particles(&input, file, &spec)?;
         particles_n = particles_n.max(particles.len());
         // View-independent: once per time step, reused by every view (as the VTK mapper does).
         let t = Instant::now();
@@ -222,15 +248,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
             .adaptive
             .surface_cells
             .then(|| particles.surface_flags(SURFACE_THRESHOLD));
-        surface_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        surface_ms.push(ms(t));
         let (cam0, tf) = match &setup {
             Some(s) => s,
             None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),
         };
         for v in 0..a.views {
-            let mut cam = cam0.clone();
-            cam.azimuth(360.0 * v as f64 / a.views as f64);
-            cam.orthogonalize_view_up();
+            let cam = orbit(cam0, v, a.views);
             pb.set_message(format!("frame {fi}, view {v}"));
             if !a.no_reference {
                 let (_, s) = render_reference(&particles, &cam, tf, &base)

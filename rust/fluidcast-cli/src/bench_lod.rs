@@ -5,18 +5,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::{compare, Image};
-use fluidcast_io::Arrays;
 use fluidcast_lod::LodHierarchy;
 use fluidcast_render::{render_adaptive, RenderParams, SURFACE_THRESHOLD};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 use serde_json::json;
 
-use crate::bench::{BenchArgs, Setup};
-
-fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
+use crate::bench::{frame_particles, ms, orbit, BenchArgs, Setup};
 
 /// Parses `--lod` (comma-separated tolerances in pixels, each finite and >= 0).
 pub fn tolerances(s: &str) -> Result<Vec<f64>> {
@@ -102,8 +97,7 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
     let mut setup = None;
     for &fi in &frames {
         let file = &all[fi].1;
-        let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
-        let particles = Particles::from_source(&ds, &spec)?;
+        let particles = frame_particles(&input, file, &spec)?;
         let (cam0, tf) = match &setup {
             Some(s) => s,
             None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),
@@ -118,9 +112,7 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
             .surface_cells
             .then(|| p.surface_flags(SURFACE_THRESHOLD));
         for v in 0..a.views {
-            let mut cam = cam0.clone();
-            cam.azimuth(360.0 * v as f64 / a.views as f64);
-            cam.orthogonalize_view_up();
+            let cam = orbit(cam0, v, a.views);
             pb.set_message(format!("frame {fi}, view {v}"));
             let (reference, _, t_full) = render(p, surface.as_deref(), &cam, tf, &base)
                 .with_context(|| format!("rendering {}", file.display()))?;

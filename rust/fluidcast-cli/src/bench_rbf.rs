@@ -4,17 +4,11 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_io::Arrays;
 use fluidcast_rbf::{RbfField, MAX_LEAF_SIZE};
 use fluidcast_render::render_rbf;
-use fluidcast_sph::Particles;
 use serde_json::json;
 
-use crate::bench::{BenchArgs, Setup};
-
-fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
+use crate::bench::{frame_particles, ms, orbit, BenchArgs, Setup};
 
 /// Parses `--leaf-sizes` (comma-separated, each 1..=64).
 fn leaf_sizes(s: &str) -> Result<Vec<usize>> {
@@ -64,8 +58,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     for &fi in &frames {
         let file = &all[fi].1;
         let t = Instant::now();
-        let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
-        let particles = Particles::from_source(&ds, &spec)?;
+        let particles = frame_particles(&input, file, &spec)?;
         let read_ms = ms(t);
         let (cam0, tf) = match &setup {
             Some(s) => s,
@@ -94,9 +87,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
                 samples: 0,
             };
             for v in 0..a.views {
-                let mut cam = cam0.clone();
-                cam.azimuth(360.0 * v as f64 / a.views as f64);
-                cam.orthogonalize_view_up();
+                let cam = orbit(cam0, v, a.views);
                 pb.set_message(format!("frame {fi}, leaf {leaf}, view {v}"));
                 let t = Instant::now();
                 let (_, s) = render_rbf(&field, &cam, tf, &base, &rp)
