@@ -332,6 +332,18 @@ struct Prepared {
     rbf: rbf::RbfState,
     /// The particles' level-of-detail hierarchy, built on the first render that asks for it.
     lod: Option<LodHierarchy>,
+    /// The last view's cut (`None` inside: it merged nothing), kept for renders of the same
+    /// view (ParaView's still render after an interactive one, a re-render of an unchanged
+    /// window): the cut and its surface flags are not made again.
+    last_cut: Option<(CutView, Option<Cut>)>,
+}
+
+/// What a cut depends on besides the particles.
+#[derive(PartialEq)]
+struct CutView {
+    camera: Camera,
+    size: (u32, u32),
+    tolerance: f64,
 }
 
 fn new_renderer() -> Box<Renderer> {
@@ -697,6 +709,7 @@ impl Renderer {
                 info,
                 rbf: rbf::RbfState::default(),
                 lod: None,
+                last_cut: None,
             });
         }
         Ok(self.prepared.as_ref().expect("prepared above"))
@@ -800,16 +813,21 @@ impl Renderer {
             }
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             if s.lod_tolerance > 0.0 {
-                self.build_lod(&params)?;
+                let view = CutView {
+                    camera: camera.clone(),
+                    size: (width, height),
+                    tolerance: s.lod_tolerance,
+                };
+                self.cut_for(&params, view)?;
             }
             let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
             };
-            let cut = match (&p.lod, s.lod_tolerance > 0.0) {
-                (Some(h), true) => lod_cut(h, &camera, (width, height), s.lod_tolerance)?,
+            let cut = match &p.last_cut {
+                Some((_, cut)) if s.lod_tolerance > 0.0 => cut.as_ref(),
                 _ => None,
             };
-            let (particles, flags, lod_note) = match &cut {
+            let (particles, flags, lod_note) = match cut {
                 Some(c) => (&c.particles, Some(c.surface.as_slice()), c.note.as_str()),
                 None => (&p.particles, Some(p.surface.as_slice()), ""),
             };
@@ -868,9 +886,10 @@ impl Renderer {
 }
 
 impl Renderer {
-    /// Builds the level-of-detail hierarchy of the prepared particles, once per data set.
-    /// Refused with iso-surfaces of another array, whose values are full detail's.
-    fn build_lod(&mut self, params: &RenderParams) -> Result<(), String> {
+    /// Makes the prepared particles' cut for `view` (`last_cut`), unless it is the last
+    /// one's; builds their level-of-detail hierarchy first, once per data set. Refused with
+    /// iso-surfaces of another array, whose values are full detail's.
+    fn cut_for(&mut self, params: &RenderParams, view: CutView) -> Result<(), String> {
         if let Some(s) = &params.surfaces {
             if matches!(s.field, IsoField::Attribute(Some(_))) {
                 return Err(format!("{}: level of detail (LODTolerance) with iso-surfaces of another array: the hierarchy merges the rendered array only; set LODTolerance to 0 or draw surfaces of the rendered array", self.name()));
@@ -885,6 +904,13 @@ impl Renderer {
             let h = LodHierarchy::build(p.particles.clone())
                 .map_err(|e| format!("{name}: level of detail: {e}"))?;
             p.lod = Some(h);
+        }
+        if p.last_cut.as_ref().is_some_and(|(v, _)| *v == view) {
+            return Ok(());
+        }
+        if let Some(h) = &p.lod {
+            let cut = lod_cut(h, &view.camera, view.size, view.tolerance)?;
+            p.last_cut = Some((view, cut));
         }
         Ok(())
     }
@@ -1075,7 +1101,7 @@ mod tests {
     }
 
     /// A renderer holding a 59^3 lattice cube of support radius 0.02 valued by `value`
-    /// (index -> value), its settings, and a 40x30 render of it: (RGBA, depth, info).
+    /// (index -> value), its settings and the number of particles.
     fn big_cube(value: impl Fn(usize) -> f32) -> (Box<Renderer>, ffi::Settings, usize) {
         let mut r = new_renderer();
         ready(&mut r);
@@ -1093,6 +1119,7 @@ mod tests {
 
     type Frame = (Vec<f32>, Vec<f32>, ffi::RenderInfo);
 
+    /// A 40x30 render: (RGBA, depth, info).
     fn render_40x30(r: &mut Renderer) -> Result<Frame, String> {
         let mut rgba = vec![0f32; 4 * 40 * 30];
         let mut depth = vec![0f32; 40 * 30];
@@ -1174,6 +1201,33 @@ mod tests {
         assert_eq!(rgba, want_rgba);
         assert_eq!(depth, want.image.depth);
         assert_ne!(rgba, whole);
+        // The same view again takes the kept cut; another view its own, as a renderer that
+        // never saw the first view makes it.
+        assert_eq!(render(&mut r).unwrap().0, rgba);
+        let turned = ffi::CameraDesc {
+            position: [1.6, 0.9, 2.4],
+            focal_point: [0.25, 0.25, 0.25],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 30.0,
+            parallel_projection: false,
+            parallel_scale: 1.0,
+        };
+        r.set_camera(&turned).unwrap();
+        let (mut fresh, _, _) = big_cube(|i| (i as f32 * 0.37).sin());
+        fresh.configure(&s).unwrap();
+        fresh.set_camera(&turned).unwrap();
+        let there = render(&mut r).unwrap().0;
+        assert_eq!(there, render(&mut fresh).unwrap().0);
+        assert_ne!(there, rgba);
+        r.set_camera(&ffi::CameraDesc {
+            position: [0.25, 0.25, 3.0],
+            focal_point: [0.25, 0.25, 0.25],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 30.0,
+            parallel_projection: false,
+            parallel_scale: 1.0,
+        })
+        .unwrap();
         let says = format!("of {n} particles");
         assert!(
             info.notes.contains("level of detail 2 px") && info.notes.contains(&says),
