@@ -1,6 +1,7 @@
 /**
  * @class   vtkFluidCastReader
- * @brief   Reads SPH particle files (.vtu, .vtp, legacy .vtk) with fluidcast's checked reader.
+ * @brief   Reads SPH particle files (.vtu, .vtp, legacy .vtk) and .pvd time series with
+ *          fluidcast's checked reader, reading the next time step ahead.
  *
  * The output is a vtkPolyData: the file's points (double precision), one vertex cell per
  * point, its point-data arrays (with the numeric type they had in the file) and its field
@@ -20,6 +21,8 @@
 #include "fluidcastRenderingModule.h" // for export macro
 #include "vtkPolyDataAlgorithm.h"
 
+#include <memory> // for std::unique_ptr
+
 class FLUIDCASTRENDERING_EXPORT vtkFluidCastReader : public vtkPolyDataAlgorithm
 {
 public:
@@ -29,14 +32,36 @@ public:
 
   ///@{
   /**
-   * The file to read (.vtu, .vtp or .vtk).
+   * The file to read (.vtu, .vtp, .vtk, or a .pvd time series).
    */
   vtkSetFilePathMacro(FileName);
   vtkGetFilePathMacro(FileName);
   ///@}
 
+  ///@{
   /**
-   * 1 when the file's extension is one this reader takes (.vtu, .vtp, .vtk), else 0.
+   * For a .pvd series: read the next time step on a second thread once a step has been
+   * read (default on). Off: each step is read when it is requested.
+   */
+  vtkSetMacro(Prefetch, vtkTypeBool);
+  vtkGetMacro(Prefetch, vtkTypeBool);
+  vtkBooleanMacro(Prefetch, vtkTypeBool);
+  ///@}
+
+  /**
+   * How many of the time steps the reader has output came from the prefetch thread, since
+   * it was made (what an animation gained from Prefetch).
+   */
+  vtkGetMacro(PrefetchedSteps, int);
+
+  /**
+   * Number of distinct times of the .pvd series (0 for a single file, or before the
+   * pipeline's information pass).
+   */
+  int GetNumberOfTimeSteps() const;
+
+  /**
+   * 1 when the file's extension is one this reader takes (.vtu, .vtp, .vtk, .pvd), else 0.
    */
   static int CanReadFile(const char* fname);
 
@@ -44,11 +69,17 @@ protected:
   vtkFluidCastReader();
   ~vtkFluidCastReader() override;
 
+  int RequestInformation(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
   int RequestData(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
 
   char* FileName = nullptr;
+  vtkTypeBool Prefetch = 1;
+  int PrefetchedSteps = 0;
 
 private:
+  struct vtkInternals;
+  std::unique_ptr<vtkInternals> Internals;
+
   vtkFluidCastReader(const vtkFluidCastReader&) = delete;
   void operator=(const vtkFluidCastReader&) = delete;
 };

@@ -2,16 +2,21 @@
  * @class   vtkPVFluidCastReader
  * @brief   ParaView's face of vtkFluidCastReader: the "fluidcast particle reader".
  *
- * A thin source that runs vtkFluidCastReader (fluidcast's checked reader for .vtu, .vtp and
- * legacy .vtk particle files) and passes its vtkPolyData on. It exists so that the reader is
- * wrapped for ParaView's server manager with the plugin; see vtkFluidCastReader for what it
- * reads and how it reports damaged files (a VTK error, never an abort).
+ * A thin source over one vtkFluidCastReader (fluidcast's checked reader for .vtu, .vtp and
+ * legacy .vtk particle files and .pvd time series) that passes its vtkPolyData on, with its
+ * time steps, to ParaView's animation. It exists so that the reader is wrapped for
+ * ParaView's server manager with the plugin; see vtkFluidCastReader for what it reads, how
+ * it reads the next time step ahead (Prefetch) and how it reports damaged files (a VTK error,
+ * never an abort).
  */
 #ifndef vtkPVFluidCastReader_h
 #define vtkPVFluidCastReader_h
 
 #include "fluidcastParaViewRepresentationModule.h" // for export macro
+#include "vtkNew.h"                             // for vtkNew
 #include "vtkPolyDataAlgorithm.h"
+
+class vtkFluidCastReader;
 
 class FLUIDCASTPARAVIEWREPRESENTATION_EXPORT vtkPVFluidCastReader : public vtkPolyDataAlgorithm
 {
@@ -22,11 +27,26 @@ public:
 
   ///@{
   /**
-   * The file to read (.vtu, .vtp or .vtk).
+   * The file to read (.vtu, .vtp, .vtk or a .pvd time series).
    */
   vtkSetFilePathMacro(FileName);
   vtkGetFilePathMacro(FileName);
   ///@}
+
+  ///@{
+  /**
+   * For a .pvd series: read the next time step on a second thread while the current one
+   * renders (vtkFluidCastReader::Prefetch; default on).
+   */
+  void SetPrefetch(vtkTypeBool prefetch);
+  vtkTypeBool GetPrefetch();
+  vtkBooleanMacro(Prefetch, vtkTypeBool);
+  ///@}
+
+  /**
+   * How many of the time steps output so far came from the prefetch thread.
+   */
+  int GetPrefetchedSteps();
 
   /**
    * 1 when the file's extension is one the reader takes, else 0 (ParaView's reader factory
@@ -38,9 +58,12 @@ protected:
   vtkPVFluidCastReader();
   ~vtkPVFluidCastReader() override;
 
+  int RequestInformation(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
   int RequestData(vtkInformation*, vtkInformationVector**, vtkInformationVector*) override;
 
   char* FileName = nullptr;
+  /// The one reader behind every request (it keeps the series and the prefetched step).
+  vtkNew<vtkFluidCastReader> Reader;
 
 private:
   vtkPVFluidCastReader(const vtkPVFluidCastReader&) = delete;

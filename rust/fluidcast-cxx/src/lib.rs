@@ -138,9 +138,24 @@ mod ffi {
         device: String,
     }
 
+    /// One data set of a `.pvd` time series (`vtkFluidCastReader`'s time steps).
+    #[derive(Debug, Clone)]
+    struct SeriesEntry {
+        /// The `timestep` attribute (simulation time; 0 when absent).
+        time: f64,
+        /// The `part` attribute (0 when absent): the parts of one time are one data set.
+        part: u32,
+        /// The data set's file, resolved against the `.pvd`'s folder.
+        file: String,
+    }
+
     extern "Rust" {
         /// A particle file read by fluidcast's checked reader (`vtkFluidCastReader`).
         type ParticleFile;
+
+        /// The data sets a `.pvd` collection lists, sorted by time (stable for equal times);
+        /// the files are not opened. The error names the `.pvd` and the problem.
+        fn read_series(path: &str) -> Result<Vec<SeriesEntry>>;
 
         /// Reads a `.vtu`, `.vtp` or legacy `.vtk` file with every check of `fluidcast
         /// info`; the error names the file and the problem.
@@ -239,6 +254,28 @@ fn read_particle_file(path: &str) -> Result<Box<ParticleFile>, String> {
         let data = fluidcast_io::read_dataset(path).map_err(|e| e.to_string())?;
         let points = data.points.iter().flatten().copied().collect();
         Ok(Box::new(ParticleFile { points, data }))
+    })
+}
+
+fn read_series(path: &str) -> Result<Vec<ffi::SeriesEntry>, String> {
+    guarded("read_series", || {
+        let c = fluidcast_io::read_collection(path).map_err(|e| e.to_string())?;
+        c.entries
+            .into_iter()
+            .map(|e| {
+                let file = e.file.to_str().map(str::to_owned).ok_or_else(|| {
+                    format!(
+                        "{path}: the data set file '{}' is not valid UTF-8",
+                        e.file.display()
+                    )
+                })?;
+                Ok(ffi::SeriesEntry {
+                    time: e.timestep,
+                    part: e.part,
+                    file,
+                })
+            })
+            .collect()
     })
 }
 
@@ -1599,5 +1636,41 @@ mod tests {
         assert!((a - 0.5).abs() < 1e-12);
         assert!(transfer_function(0.0, 1.0, &[0.0; 3], &[0.0], 1.0).is_err());
         assert!(transfer_function(0.0, 1.0, &[0.0; 6], &[0.0; 2], 0.0).is_err());
+    }
+
+    #[test]
+    fn a_series_lists_its_data_sets_in_time_order_resolved_against_its_folder() {
+        let dir = std::env::temp_dir().join(format!("fluidcast_cxx_series_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let pvd = dir.join("s.pvd");
+        std::fs::write(
+            &pvd,
+            r#"<VTKFile type="Collection"><Collection>
+            <DataSet timestep="0.2" part="1" file="b1.vtu"/>
+            <DataSet timestep="0.1" file="sub/a.vtu"/>
+            <DataSet timestep="0.2" part="0" file="b0.vtu"/>
+            </Collection></VTKFile>"#,
+        )
+        .unwrap();
+        let path = pvd.to_str().unwrap();
+        let s = read_series(path).unwrap();
+        let got: Vec<(f64, u32, String)> =
+            s.iter().map(|e| (e.time, e.part, e.file.clone())).collect();
+        let at = |f: &str| dir.join(f).to_str().unwrap().to_owned();
+        assert_eq!(
+            got,
+            [
+                (0.1, 0, at("sub/a.vtu")),
+                (0.2, 1, at("b1.vtu")),
+                (0.2, 0, at("b0.vtu"))
+            ]
+        );
+        std::fs::write(&pvd, "<VTKFile type=\"Collection\"><Collection>").unwrap();
+        let e = read_series(path).unwrap_err();
+        assert!(e.contains("s.pvd") && e.contains("</Collection>"), "{e}");
+        assert!(read_series(dir.join("none.pvd").to_str().unwrap())
+            .unwrap_err()
+            .contains("none.pvd"));
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
