@@ -120,6 +120,34 @@ vtkSmartPointer<vtkPolyData> ReadFile(const std::string& path)
   return output;
 }
 
+/// Computes what ParaView's data information asks of every new data set (bounds, and each
+/// array's range and finite range per component and of the magnitude), so that it is cached in
+/// the arrays (VTK keeps ranges until an array is modified). On the prefetch thread this takes
+/// that work off the main thread: for 2.7M particles with 8 arrays it is about 2 s of the
+/// data information ParaView gathers for each time step.
+void CacheRanges(vtkPolyData* data)
+{
+  double bounds[6];
+  data->GetBounds(bounds);
+  auto cache = [](vtkDataArray* a)
+  {
+    for (int c = -1; c < a->GetNumberOfComponents(); ++c)
+    {
+      double range[2];
+      a->GetRange(range, c);
+      a->GetFiniteRange(range, c);
+    }
+  };
+  cache(data->GetPoints()->GetData());
+  for (int i = 0; i < data->GetPointData()->GetNumberOfArrays(); ++i)
+  {
+    if (vtkDataArray* a = data->GetPointData()->GetArray(i))
+    {
+      cache(a);
+    }
+  }
+}
+
 /// A time step read (or the error that stopped it, naming the file and the problem).
 struct Frame
 {
@@ -127,9 +155,10 @@ struct Frame
   std::string Error;
 };
 
-/// The particles of `files` (the parts of one time step, appended in order). Runs on the
-/// prefetch thread too: it touches nothing but its own objects and reports no VTK error.
-Frame ReadStep(const std::vector<std::string>& files)
+/// The particles of `files` (the parts of one time step, appended in order), with their
+/// ranges cached when `cacheRanges`. Runs on the prefetch thread too: it touches nothing but
+/// its own objects and reports no VTK error.
+Frame ReadStep(const std::vector<std::string>& files, bool cacheRanges)
 {
   Frame frame;
   try
@@ -137,15 +166,21 @@ Frame ReadStep(const std::vector<std::string>& files)
     if (files.size() == 1)
     {
       frame.Data = ReadFile(files.front());
-      return frame;
     }
-    vtkNew<vtkAppendPolyData> append;
-    for (const auto& file : files)
+    else
     {
-      append->AddInputData(ReadFile(file));
+      vtkNew<vtkAppendPolyData> append;
+      for (const auto& file : files)
+      {
+        append->AddInputData(ReadFile(file));
+      }
+      append->Update();
+      frame.Data = append->GetOutput();
     }
-    append->Update();
-    frame.Data = append->GetOutput();
+    if (cacheRanges)
+    {
+      CacheRanges(frame.Data);
+    }
   }
   catch (const rust::Error& e)
   {
@@ -222,7 +257,7 @@ struct vtkFluidCastReader::vtkInternals
       this->PendingFiles.clear();
       return this->Pending.get();
     }
-    return ReadStep(this->Steps[i].Files);
+    return ReadStep(this->Steps[i].Files, false);
   }
 
   /// Starts reading step `i` on the prefetch thread (waiting for one still running).
@@ -234,7 +269,7 @@ struct vtkFluidCastReader::vtkInternals
     }
     this->Drop();
     this->PendingFiles = this->Steps[i].Files;
-    this->Pending = std::async(std::launch::async, ReadStep, this->PendingFiles);
+    this->Pending = std::async(std::launch::async, ReadStep, this->PendingFiles, true);
   }
 
   /// Forgets the prefetched step (after the thread has finished with it).
@@ -346,7 +381,7 @@ int vtkFluidCastReader::RequestData(
   double time = 0.0;
   if (internals.Steps.empty())
   {
-    frame = ReadStep({ this->FileName });
+    frame = ReadStep({ this->FileName }, false);
   }
   else
   {
