@@ -42,6 +42,8 @@ from paraview.simple import (
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
+from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
+
 flags = ("--properties", "--iso", "--memory-limit")
 args = [a for a in sys.argv[1:] if a not in flags]
 properties = "--properties" in sys.argv
@@ -52,12 +54,8 @@ iso_extra = ("--iso", "0.5", "--specular-power", "20") if iso else ()
 plugin, data, array, out, cli, tolerance = args[:6]
 backend = args[6] if len(args) > 6 else "Auto"
 tolerance = float(tolerance)
-if not os.path.exists(data):
-    if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
-        print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {data} is missing")
-        sys.exit(1)
-    print(f"SKIP: {data} not present")
-    sys.exit(77)
+if (missing := missing_data(data)) is not None:
+    sys.exit(missing)
 W, H = 320, 240
 
 LoadPlugin(plugin, remote=False, ns=globals())

@@ -47,14 +47,12 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
 from vtkmodules.vtkIOImage import vtkPNGReader
 
+from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
+
 bench = "--bench" in sys.argv
 plugin, series, array, out = [a for a in sys.argv[1:] if a != "--bench"][:4]
-if not os.path.exists(series):
-    if os.environ.get("FLUIDCAST_REQUIRE_DATA") == "1":
-        print(f"FAIL: FLUIDCAST_REQUIRE_DATA=1 but {series} is missing")
-        sys.exit(1)
-    print(f"SKIP: {series} not present")
-    sys.exit(77)
+if (missing := missing_data(series)) is not None:
+    sys.exit(missing)
 os.makedirs(out, exist_ok=True)
 W, H = 240, 180
 LoadPlugin(plugin, remote=False, ns=globals())
