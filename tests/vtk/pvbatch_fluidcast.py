@@ -39,10 +39,9 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
 )
+from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
-
-from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
 
 flags = ("--properties", "--iso", "--memory-limit")
 args = [a for a in sys.argv[1:] if a not in flags]

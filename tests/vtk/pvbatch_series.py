@@ -15,9 +15,9 @@ Checks, stepping ParaView's animation forward through every time step:
   step and the file at that step, draws nothing there, and renders the steps after it.
 Then it reports the animation's frame throughput (frames/s, read and render together) with
 Prefetch on and off and with ParaView's own .pvd reader, each over a fresh reader, best of
-two; the ratios are printed, not asserted (timings belong to benchmarks). With --bench only the throughput is measured (for a user's own, larger
-series). Exit code 0 pass, 1 fail, 77 skipped (data not present and FLUIDCAST_REQUIRE_DATA
-unset).
+two; the ratios are printed, not asserted (timings belong to benchmarks). With --bench only
+the throughput is measured (for a user's own, larger series). Exit code 0 pass, 1 fail,
+77 skipped (data not present and FLUIDCAST_REQUIRE_DATA unset).
 """
 import faulthandler
 import os
@@ -43,11 +43,10 @@ from paraview.simple import (
     Show,
     servermanager,
 )
+from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
 from vtkmodules.vtkIOImage import vtkPNGReader
-
-from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
 
 bench = "--bench" in sys.argv
 plugin, series, array, out = [a for a in sys.argv[1:] if a != "--bench"][:4]
