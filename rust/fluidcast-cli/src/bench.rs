@@ -82,6 +82,9 @@ pub(crate) struct Setup {
 impl Setup {
     pub fn new(a: &BenchArgs) -> Result<Setup> {
         let input = Input::open(&a.input)?;
+        if let Input::Series(c) = &input {
+            crate::render::warn_shared_times(c);
+        }
         let all = input.frames();
         let frames = match &a.frames {
             Some(f) => crate::render::parse_frames(f, all.len())?,

@@ -507,6 +507,21 @@ fn select_frames(a: &RenderArgs, input: &Input, n: usize) -> Result<Vec<usize>> 
     Ok(frames)
 }
 
+/// Says (once per command) that a `.pvd` listing several data sets for one time is rendered a data set a
+/// frame here (ParaView shows them together; the plugin's reader appends them).
+pub(crate) fn warn_shared_times(c: &fluidcast_io::Collection) {
+    let shared = c.shared_times();
+    if let Some(&(t, n)) = shared.first() {
+        eprintln!(
+            "warning: {} lists {n} data sets at t = {t} ({} such times): this command renders \
+             each data set as a frame of its own, not the parts of one time together as ParaView \
+             and its fluidcast particle reader show them",
+            c.path.display(),
+            shared.len()
+        );
+    }
+}
+
 /// A progress bar over `len` things counted as `unit` ("frames", "renders").
 pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
     let pb = ProgressBar::new(len as u64);
@@ -562,6 +577,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         fluidcast_image::PngEncoding::Vtk
     };
     let input = Input::open(&a.input)?;
+    if let Input::Series(c) = &input {
+        warn_shared_times(c);
+    }
     let all = input.frames();
     let frames = select_frames(&a, &input, all.len())?;
     let spec = a.particles.spec()?;

@@ -316,6 +316,54 @@ fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     }
 }
 
+/// A `.pvd` that lists two data sets for one time (the parts ParaView shows together) is
+/// rendered a data set a frame, with a warning saying so; a series of one data set a time has
+/// none.
+#[test]
+fn a_series_with_parts_of_one_time_is_rendered_with_a_warning() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    std::fs::write(p("a.vtu"), lattice_vtu([0.0; 3], 1.0)).unwrap();
+    std::fs::write(p("b.vtu"), lattice_vtu([0.2, -0.1, 0.05], 3.0)).unwrap();
+    let warning = |pvd: &str| {
+        std::fs::write(p("s.pvd"), pvd).unwrap();
+        let (i, o) = (p("s.pvd"), p("f_%03d.png"));
+        let args = [
+            "render",
+            i.to_str().unwrap(),
+            "-o",
+            o.to_str().unwrap(),
+            "--array",
+            "value",
+            "--size",
+            "20x15",
+            "--support-radius",
+            "0.2",
+            "--frames",
+            "0:2",
+        ];
+        let (ok, _, err) = run(&args);
+        assert!(ok, "{err}");
+        err.lines()
+            .find(|l| l.starts_with("warning: "))
+            .map(str::to_owned)
+    };
+    let parts = warning(
+        r#"<VTKFile type="Collection"><Collection><DataSet timestep="0.5" part="0" file="a.vtu"/>
+<DataSet timestep="0.5" part="1" file="b.vtu"/></Collection></VTKFile>"#,
+    );
+    let w = parts.expect("a warning");
+    assert!(
+        w.contains("s.pvd lists 2 data sets at t = 0.5") && w.contains("a frame of its own"),
+        "{w}"
+    );
+    let steps = warning(
+        r#"<VTKFile type="Collection"><Collection><DataSet timestep="0" file="a.vtu"/>
+<DataSet timestep="1" file="b.vtu"/></Collection></VTKFile>"#,
+    );
+    assert_eq!(steps, None);
+}
+
 /// A damaged frame in the middle of a series, read one frame ahead: the frames before it are
 /// written, the error names the file, and nothing after it is rendered.
 #[test]

@@ -24,6 +24,23 @@ pub struct Collection {
     pub entries: Vec<CollectionEntry>,
 }
 
+impl Collection {
+    /// The times at which the collection lists more than one data set, with how many.
+    /// ParaView shows the data sets of one time together (the `part`s of one step: fluid and
+    /// boundary, or one file per phase); `vtkFluidCastReader` appends them into one data set.
+    pub fn shared_times(&self) -> Vec<(f64, usize)> {
+        let mut out: Vec<(f64, usize)> = Vec::new();
+        for e in &self.entries {
+            match out.last_mut() {
+                Some((t, n)) if *t == e.timestep => *n += 1,
+                _ => out.push((e.timestep, 1)),
+            }
+        }
+        out.retain(|&(_, n)| n > 1);
+        out
+    }
+}
+
 /// Reads a `.pvd` file's `<DataSet>` list (it does not open the data sets).
 pub fn read_collection(path: impl AsRef<Path>) -> Result<Collection, ReadError> {
     let path = path.as_ref();

@@ -303,6 +303,27 @@ fn collections_name_what_is_wrong() {
 }
 
 #[test]
+fn collections_tell_the_times_that_list_several_data_sets() {
+    let c = parse_collection(
+        br#"<VTKFile type="Collection"><Collection>
+        <DataSet timestep="0.2" part="1" file="b.vtu"/><DataSet timestep="0.1" file="a.vtu"/>
+        <DataSet timestep="0.2" part="0" file="c.vtu"/><DataSet timestep="0.3" file="d.vtu"/>
+        <DataSet timestep="0.3" file="e.vtu"/><DataSet timestep="0.3" file="f.vtu"/>
+        </Collection></VTKFile>"#,
+        Path::new("parts.pvd"),
+    )
+    .unwrap();
+    assert_eq!(c.shared_times(), [(0.2, 2), (0.3, 3)]);
+    let one = parse_collection(
+        br#"<VTKFile type="Collection"><Collection><DataSet timestep="0" file="a.vtu"/>
+        <DataSet timestep="1" file="b.vtu"/></Collection></VTKFile>"#,
+        Path::new("one.pvd"),
+    )
+    .unwrap();
+    assert!(one.shared_times().is_empty());
+}
+
+#[test]
 fn devices_and_pipes_are_read_with_a_limit() {
     if !Path::new("/dev/zero").exists() {
         return;
