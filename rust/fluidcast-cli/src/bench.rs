@@ -83,7 +83,7 @@ impl Setup {
     pub fn new(a: &BenchArgs) -> Result<Setup> {
         let input = Input::open(&a.input)?;
         if let Input::Series(c) = &input {
-            crate::render::warn_shared_times(c);
+            crate::render::note_shared_times(c);
         }
         let all = input.frames();
         let frames = match &a.frames {
@@ -109,10 +109,10 @@ pub(crate) fn ms(t: Instant) -> f64 {
 /// The particles of one frame, reading only the arrays `spec` needs.
 pub(crate) fn frame_particles(
     input: &Input,
-    file: &std::path::Path,
+    frame: &fluidcast_io::Frame,
     spec: &fluidcast_sph::ParticleSpec,
 ) -> Result<Particles> {
-    let ds = input.open_lazy(file, &Arrays::Named(spec.arrays()))?;
+    let ds = input.open_frame(frame, &Arrays::Named(spec.arrays()))?;
     Ok(Particles::from_source(&ds, spec)?)
 }
 
@@ -243,7 +243,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let mut surface_ms: Vec<f64> = Vec::new();
     for &fi in &frames {
         let file = &all[fi].1;
-        let particles = frame_particles(&input, file, &spec)?;
+        let particles = frame_particles(&input, &all[fi], &spec)?;
         particles_n = particles_n.max(particles.len());
         // View-independent: once per time step, reused by every view (as the VTK mapper does).
         let t = Instant::now();

@@ -97,7 +97,7 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
     let mut setup = None;
     for &fi in &frames {
         let file = &all[fi].1;
-        let particles = frame_particles(&input, file, &spec)?;
+        let particles = frame_particles(&input, &all[fi], &spec)?;
         let (cam0, tf) = match &setup {
             Some(s) => s,
             None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),

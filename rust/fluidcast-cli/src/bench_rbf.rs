@@ -58,7 +58,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     for &fi in &frames {
         let file = &all[fi].1;
         let t = Instant::now();
-        let particles = frame_particles(&input, file, &spec)?;
+        let particles = frame_particles(&input, &all[fi], &spec)?;
         let read_ms = ms(t);
         let (cam0, tf) = match &setup {
             Some(s) => s,

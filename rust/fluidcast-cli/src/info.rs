@@ -40,7 +40,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
     };
     let input = Input::open(path)?;
     let frames = input.frames();
-    let ds = input.read(&frames[0].1)?;
+    let ds = input.read_frame(&frames[0], &fluidcast_io::Arrays::All)?;
     let nonfinite = ds
         .points
         .iter()
@@ -76,8 +76,9 @@ pub fn run(a: InfoArgs) -> Result<()> {
     }
     if let Input::Series(c) = &input {
         out!(
-            "series {}: {} frames, t = {} .. {}",
+            "series {}: {} frames ({} data sets), t = {} .. {}",
             c.path.display(),
+            frames.len(),
             c.entries.len(),
             c.entries.first().map_or(0.0, |e| e.timestep),
             c.entries.last().map_or(0.0, |e| e.timestep)

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_image::Image;
-use fluidcast_io::{Arrays, Input};
+use fluidcast_io::{Arrays, Frame, Input};
 use fluidcast_render::{
     render_in_tiles, render_perspective_grid, render_reference, RenderParams, RenderStats,
 };
@@ -398,9 +398,10 @@ impl Recipe<'_> {
     }
 }
 
-fn load(input: &Input, file: &Path, recipe: &Recipe, index: usize) -> Result<Loaded> {
+fn load(input: &Input, frame: &Frame, recipe: &Recipe, index: usize) -> Result<Loaded> {
+    let file = &frame.1;
     let t_read = Instant::now();
-    let ds = input.open_lazy(file, &recipe.arrays())?;
+    let ds = input.open_frame(frame, &recipe.arrays())?;
     let read_ms = t_read.elapsed().as_secs_f64() * 1e3;
     let t_prep = Instant::now();
     let particles = Particles::from_source(&ds, recipe.spec)?;
@@ -429,7 +430,7 @@ fn load(input: &Input, file: &Path, recipe: &Recipe, index: usize) -> Result<Loa
 /// frames in memory); the first error, of either, ends the loop and is returned.
 fn for_each_frame(
     input: &Input,
-    all: &[(Option<f64>, PathBuf)],
+    all: &[Frame],
     frames: &[usize],
     recipe: &Recipe,
     prefetch: bool,
@@ -437,7 +438,7 @@ fn for_each_frame(
 ) -> Result<()> {
     if !prefetch || frames.len() < 2 {
         for &fi in frames {
-            render(load(input, &all[fi].1, recipe, fi)?)?;
+            render(load(input, &all[fi], recipe, fi)?)?;
         }
         return Ok(());
     }
@@ -445,7 +446,7 @@ fn for_each_frame(
         let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Loaded>>(0);
         scope.spawn(move || {
             for &fi in frames {
-                let loaded = load(input, &all[fi].1, recipe, fi);
+                let loaded = load(input, &all[fi], recipe, fi);
                 let failed = loaded.is_err();
                 // A closed channel: the renderer stopped (an error); stop reading.
                 if tx.send(loaded).is_err() || failed {
@@ -507,15 +508,15 @@ fn select_frames(a: &RenderArgs, input: &Input, n: usize) -> Result<Vec<usize>> 
     Ok(frames)
 }
 
-/// Says (once per command) that a `.pvd` listing several data sets for one time is rendered a data set a
-/// frame here (ParaView shows them together; the plugin's reader appends them).
-pub(crate) fn warn_shared_times(c: &fluidcast_io::Collection) {
+/// Says (once per command) that a `.pvd` lists several data sets for some times, which
+/// are rendered together as one frame ([`Input::frames`]).
+pub(crate) fn note_shared_times(c: &fluidcast_io::Collection) {
     let shared = c.shared_times();
     if let Some(&(t, n)) = shared.first() {
         eprintln!(
-            "warning: {} lists {n} data sets at t = {t} ({} such times): this command renders \
-             each data set as a frame of its own, not the parts of one time together as ParaView \
-             and its fluidcast particle reader show them",
+            "note: {} lists {n} data sets at t = {t} ({} such times): the data sets of one time \
+             are one frame, their particles appended (the point arrays every one has), as \
+             ParaView shows them together",
             c.path.display(),
             shared.len()
         );
@@ -578,7 +579,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     };
     let input = Input::open(&a.input)?;
     if let Input::Series(c) = &input {
-        warn_shared_times(c);
+        note_shared_times(c);
     }
     let all = input.frames();
     let frames = select_frames(&a, &input, all.len())?;

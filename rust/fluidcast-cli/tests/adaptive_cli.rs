@@ -233,6 +233,12 @@ fn gpu_backend_from_the_command_line() {
 /// An ASCII .vtu of a jittered 6³ lattice of particles at `offset` (spacing 0.1) with the
 /// point array `value` = `scale` · i / 8 for the i-th lattice column along x (exact in f32).
 fn lattice_vtu(offset: [f32; 3], scale: f32) -> String {
+    let (pts, vals) = lattice(offset, scale);
+    ascii_vtu(216, &pts, &vals)
+}
+
+/// The points and values of [`lattice_vtu`], as ASCII lists.
+fn lattice(offset: [f32; 3], scale: f32) -> (String, String) {
     let (mut pts, mut vals) = (String::new(), String::new());
     for i in 0..6 {
         for j in 0..6 {
@@ -244,9 +250,14 @@ fn lattice_vtu(offset: [f32; 3], scale: f32) -> String {
             }
         }
     }
+    (pts, vals)
+}
+
+/// An ASCII .vtu of `n` points (`pts`, x y z each) with the point array `value` (`vals`).
+fn ascii_vtu(n: usize, pts: &str, vals: &str) -> String {
     format!(
         r#"<?xml version="1.0"?><VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
-<UnstructuredGrid><Piece NumberOfPoints="216" NumberOfCells="0"><PointData>
+<UnstructuredGrid><Piece NumberOfPoints="{n}" NumberOfCells="0"><PointData>
 <DataArray type="Float32" Name="value" format="ascii">{vals}</DataArray></PointData>
 <Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">{pts}</DataArray></Points>
 <Cells></Cells></Piece></UnstructuredGrid></VTKFile>"#
@@ -316,52 +327,57 @@ fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     }
 }
 
-/// A `.pvd` that lists two data sets for one time (the parts ParaView shows together) is
-/// rendered a data set a frame, with a warning saying so; a series of one data set a time has
-/// none.
+/// A `.pvd` that lists two data sets for one time (the parts ParaView shows together) has
+/// one frame for that time: it renders as one file holding both parts' particles (written
+/// here by hand), with a note saying so; a series of one data set a time has no note.
 #[test]
-fn a_series_with_parts_of_one_time_is_rendered_with_a_warning() {
+fn the_parts_of_one_time_render_as_one_frame() {
     let d = tempfile::tempdir().unwrap();
     let p = |n: &str| d.path().join(n);
-    std::fs::write(p("a.vtu"), lattice_vtu([0.0; 3], 1.0)).unwrap();
-    std::fs::write(p("b.vtu"), lattice_vtu([0.2, -0.1, 0.05], 3.0)).unwrap();
-    let warning = |pvd: &str| {
-        std::fs::write(p("s.pvd"), pvd).unwrap();
-        let (i, o) = (p("s.pvd"), p("f_%03d.png"));
-        let args = [
-            "render",
-            i.to_str().unwrap(),
-            "-o",
-            o.to_str().unwrap(),
-            "--array",
-            "value",
-            "--size",
-            "20x15",
-            "--support-radius",
-            "0.2",
-            "--frames",
-            "0:2",
-        ];
-        let (ok, _, err) = run(&args);
-        assert!(ok, "{err}");
-        err.lines()
-            .find(|l| l.starts_with("warning: "))
-            .map(str::to_owned)
+    let (a, b) = (lattice([0.0; 3], 1.0), lattice([0.45, -0.1, 0.05], 3.0));
+    std::fs::write(p("a.vtu"), ascii_vtu(216, &a.0, &a.1)).unwrap();
+    std::fs::write(p("b.vtu"), ascii_vtu(216, &b.0, &b.1)).unwrap();
+    let both = ascii_vtu(432, &(a.0 + &b.0), &(a.1 + &b.1));
+    std::fs::write(p("both.vtu"), both).unwrap();
+    let render = |input: &str, out: &str, frames: &str| {
+        let (i, o) = (p(input), p(out));
+        let mut args = vec!["render", i.to_str().unwrap(), "-o", o.to_str().unwrap()];
+        args.extend_from_slice(&["--array", "value", "--size", "20x15"]);
+        args.extend_from_slice(&["--support-radius", "0.2", "--range", "0,1.875"]);
+        if !frames.is_empty() {
+            args.extend_from_slice(&["--frames", frames]);
+        }
+        run(&args)
     };
-    let parts = warning(
+    std::fs::write(
+        p("s.pvd"),
         r#"<VTKFile type="Collection"><Collection><DataSet timestep="0.5" part="0" file="a.vtu"/>
-<DataSet timestep="0.5" part="1" file="b.vtu"/></Collection></VTKFile>"#,
-    );
-    let w = parts.expect("a warning");
+<DataSet timestep="0.5" part="1" file="b.vtu"/><DataSet timestep="1" file="a.vtu"/>
+</Collection></VTKFile>"#,
+    )
+    .unwrap();
+    let (ok, _, err) = render("s.pvd", "f_%03d.exr", "0:2");
+    assert!(ok, "{err}");
     assert!(
-        w.contains("s.pvd lists 2 data sets at t = 0.5") && w.contains("a frame of its own"),
-        "{w}"
+        err.contains("s.pvd lists 2 data sets at t = 0.5 (1 such times)"),
+        "{err}"
     );
-    let steps = warning(
+    let (ok, _, err) = render("both.vtu", "both.exr", "");
+    assert!(ok, "{err}");
+    assert_eq!(compare(&p("f_000.exr"), &p("both.exr")), (0.0, 0.0));
+    // The second time is a.vtu alone: another image.
+    assert!(compare(&p("f_001.exr"), &p("both.exr")).0 > 0.01);
+    // Two times, so two frames (three data sets).
+    let (ok, _, err) = render("s.pvd", "g_%03d.exr", "0:3");
+    assert!(ok && err.contains("\n2 frames in"), "{err}");
+    std::fs::write(
+        p("s.pvd"),
         r#"<VTKFile type="Collection"><Collection><DataSet timestep="0" file="a.vtu"/>
 <DataSet timestep="1" file="b.vtu"/></Collection></VTKFile>"#,
-    );
-    assert_eq!(steps, None);
+    )
+    .unwrap();
+    let (ok, _, err) = render("s.pvd", "h_%03d.exr", "0:2");
+    assert!(ok && !err.contains("data sets at t"), "{err}");
 }
 
 /// A damaged frame in the middle of a series, read one frame ahead: the frames before it are

@@ -546,6 +546,10 @@ fn validate(ds: &Dataset) -> Result<(), ReadError> {
     Ok(())
 }
 
+/// One frame of an [`Input`]: its time (`None` for a single file) and the file that names
+/// it (for a `.pvd` time with several parts, the first; read it with [`Input::read_frame`]).
+pub type Frame = (Option<f64>, PathBuf);
+
 /// What a user pointed the tool at: one file or a time series.
 #[derive(Debug, Clone)]
 pub enum Input {
@@ -603,16 +607,60 @@ impl Input {
         }
     }
 
+    /// Reads one of [`Input::frames`], decoding the point arrays `arrays` selects: its file,
+    /// or every part of its time appended (points, and the point arrays every part has).
+    pub fn read_frame(&self, frame: &Frame, arrays: &Arrays) -> Result<Dataset, ReadError> {
+        let Some(parts) = self.parts_at(frame.0) else {
+            return self.read_with(&frame.1, arrays);
+        };
+        let pieces = parts
+            .iter()
+            .map(|p| self.read_with(p, arrays))
+            .collect::<Result<Vec<_>, _>>()?;
+        let kind = pieces.first().map_or(DatasetKind::PolyData, |d| d.kind);
+        Ok(parallel::concat(&frame.1, kind, &pieces))
+    }
+
+    /// [`Input::open_lazy`] of one of [`Input::frames`]; a frame of several parts is read
+    /// and appended at once ([`Input::read_frame`]).
+    pub fn open_frame(&self, frame: &Frame, arrays: &Arrays) -> Result<LazyDataset, ReadError> {
+        match self.parts_at(frame.0) {
+            Some(_) => self.read_frame(frame, arrays).map(LazyDataset::Read),
+            None => self.open_lazy(&frame.1, arrays),
+        }
+    }
+
+    /// The files a `.pvd` lists for `time` when there are several (in its order), else None.
+    fn parts_at(&self, time: Option<f64>) -> Option<Vec<PathBuf>> {
+        let (Input::Series(c), Some(time)) = (self, time) else {
+            return None;
+        };
+        let parts: Vec<PathBuf> = c
+            .entries
+            .iter()
+            .filter(|e| e.timestep == time)
+            .map(|e| e.file.clone())
+            .collect();
+        (parts.len() > 1).then_some(parts)
+    }
+
     /// Frames as (time, file); a single file has one frame at the time in its `TIME` field
-    /// data if the caller reads it, reported here as `None`.
-    pub fn frames(&self) -> Vec<(Option<f64>, PathBuf)> {
+    /// data if the caller reads it, reported here as `None`. A `.pvd` has one frame a time:
+    /// the data sets it lists for one time (its `part`s) are one frame, named by the first
+    /// of them and read appended (points, and the point arrays every part has), as ParaView
+    /// shows them together.
+    pub fn frames(&self) -> Vec<Frame> {
         match self {
             Input::File(p) => vec![(None, p.clone())],
-            Input::Series(c) => c
-                .entries
-                .iter()
-                .map(|e| (Some(e.timestep), e.file.clone()))
-                .collect(),
+            Input::Series(c) => {
+                let mut out: Vec<Frame> = Vec::new();
+                for e in &c.entries {
+                    if out.last().is_none_or(|(t, _)| *t != Some(e.timestep)) {
+                        out.push((Some(e.timestep), e.file.clone()));
+                    }
+                }
+                out
+            }
         }
     }
 }

@@ -184,14 +184,6 @@ fn merge(
         .iter()
         .filter(|n| arrays.wants(n))
         .collect();
-    let mut names: Vec<(String, usize)> = Vec::new();
-    if let Some(first) = pieces.first() {
-        names = first
-            .point_data
-            .iter()
-            .map(|a| (a.name.clone(), a.num_components))
-            .collect();
-    }
     for (p, ds) in summary.pieces.iter().zip(&pieces) {
         if ds.kind != summary.kind {
             return Err(err(format!(
@@ -209,21 +201,39 @@ fn merge(
                 )));
             }
         }
-        names.retain(|(n, c)| ds.point_array(n).is_some_and(|a| a.num_components == *c));
     }
+    let out = concat(path, summary.kind, &pieces);
     // Every declared array is in every piece (checked above): one that did not stay has
     // different component counts somewhere.
-    let uneven = declared
-        .iter()
-        .find(|d| !names.iter().any(|(n, _)| n == **d));
+    let uneven = declared.iter().find(|d| out.point_array(d).is_none());
     if let Some(d) = uneven {
         return Err(err(format!(
             "the declared point array '{d}' has different component counts in the pieces"
         )));
     }
+    Ok(out)
+}
+
+/// Data sets' particles as one, named `path`, of `kind`: points concatenated in order, the
+/// point arrays every one of them has with the same component count (others are dropped, as
+/// `vtkAppendPolyData` does), ghost points dropped, the field data of the first.
+pub(crate) fn concat(path: &Path, kind: DatasetKind, pieces: &[Dataset]) -> Dataset {
+    let mut names: Vec<(String, usize)> = pieces
+        .first()
+        .map(|first| {
+            first
+                .point_data
+                .iter()
+                .map(|a| (a.name.clone(), a.num_components))
+                .collect()
+        })
+        .unwrap_or_default();
+    for ds in pieces {
+        names.retain(|(n, c)| ds.point_array(n).is_some_and(|a| a.num_components == *c));
+    }
     let mut out = Dataset {
         path: path.to_path_buf(),
-        kind: summary.kind,
+        kind,
         points: Vec::new(),
         point_data: Vec::new(),
         field_data: pieces
@@ -245,10 +255,10 @@ fn merge(
             values: Vec::new(),
         })
         .collect();
-    for ds in &pieces {
+    for ds in pieces {
         append_owned(&mut out, ds);
     }
-    Ok(out)
+    out
 }
 
 /// Appends the points of `piece` that it owns (not ghosts), with their values of every
