@@ -26,6 +26,7 @@
 #include <future>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 vtkStandardNewMacro(vtkFluidCastReader);
@@ -229,13 +230,14 @@ struct vtkFluidCastReader::vtkInternals
   {
     this->Steps.clear();
     this->SeriesFile.clear();
-    for (const auto& e : fluidcast::read_series(pvd))
+    for (const auto& step : fluidcast::read_series(pvd))
     {
-      if (this->Steps.empty() || this->Steps.back().Time != e.time)
+      Step s{ step.time, {} };
+      for (const auto& file : step.files)
       {
-        this->Steps.push_back(Step{ e.time, {} });
+        s.Files.emplace_back(std::string(file));
       }
-      this->Steps.back().Files.emplace_back(std::string(e.file));
+      this->Steps.push_back(std::move(s));
     }
     this->SeriesFile = pvd;
   }

@@ -138,24 +138,24 @@ mod ffi {
         device: String,
     }
 
-    /// One data set of a `.pvd` time series (`vtkFluidCastReader`'s time steps).
+    /// One time step of a `.pvd` series (`vtkFluidCastReader`'s time steps).
     #[derive(Debug, Clone)]
-    struct SeriesEntry {
+    struct SeriesStep {
         /// The `timestep` attribute (simulation time; 0 when absent).
         time: f64,
-        /// The `part` attribute (0 when absent): the parts of one time are one data set.
-        part: u32,
-        /// The data set's file, resolved against the `.pvd`'s folder.
-        file: String,
+        /// The data sets the `.pvd` lists for this time, in its order, resolved against its
+        /// folder: one data set, their particles appended.
+        files: Vec<String>,
     }
 
     extern "Rust" {
         /// A particle file read by fluidcast's checked reader (`vtkFluidCastReader`).
         type ParticleFile;
 
-        /// The data sets a `.pvd` collection lists, sorted by time (stable for equal times);
-        /// the files are not opened. The error names the `.pvd` and the problem.
-        fn read_series(path: &str) -> Result<Vec<SeriesEntry>>;
+        /// The time steps of a `.pvd` collection, in time order, each with its data sets
+        /// (fluidcast-io's `Collection::steps`); the files are not opened. The error names the
+        /// `.pvd` and the problem.
+        fn read_series(path: &str) -> Result<Vec<SeriesStep>>;
 
         /// Reads a `.vtu`, `.vtp` or legacy `.vtk` file with every check of `fluidcast
         /// info`; the error names the file and the problem.
@@ -257,22 +257,22 @@ fn read_particle_file(path: &str) -> Result<Box<ParticleFile>, String> {
     })
 }
 
-fn read_series(path: &str) -> Result<Vec<ffi::SeriesEntry>, String> {
+fn read_series(path: &str) -> Result<Vec<ffi::SeriesStep>, String> {
     guarded("read_series", || {
         let c = fluidcast_io::read_collection(path).map_err(|e| e.to_string())?;
-        c.entries
-            .into_iter()
-            .map(|e| {
-                let file = e.file.to_str().map(str::to_owned).ok_or_else(|| {
-                    format!(
-                        "{path}: the data set file '{}' is not valid UTF-8",
-                        e.file.display()
-                    )
-                })?;
-                Ok(ffi::SeriesEntry {
-                    time: e.timestep,
-                    part: e.part,
-                    file,
+        let file = |e: &fluidcast_io::CollectionEntry| {
+            e.file.to_str().map(str::to_owned).ok_or_else(|| {
+                format!(
+                    "{path}: the data set file '{}' is not valid UTF-8",
+                    e.file.display()
+                )
+            })
+        };
+        c.steps()
+            .map(|step| {
+                Ok(ffi::SeriesStep {
+                    time: step.first().map_or(0.0, |e| e.timestep),
+                    files: step.iter().map(file).collect::<Result<_, String>>()?,
                 })
             })
             .collect()
@@ -1639,7 +1639,7 @@ mod tests {
     }
 
     #[test]
-    fn a_series_lists_its_data_sets_in_time_order_resolved_against_its_folder() {
+    fn a_series_lists_its_time_steps_in_order_with_their_files_resolved_against_its_folder() {
         let dir = std::env::temp_dir().join(format!("fluidcast_cxx_series_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let pvd = dir.join("s.pvd");
@@ -1654,15 +1654,13 @@ mod tests {
         .unwrap();
         let path = pvd.to_str().unwrap();
         let s = read_series(path).unwrap();
-        let got: Vec<(f64, u32, String)> =
-            s.iter().map(|e| (e.time, e.part, e.file.clone())).collect();
+        let got: Vec<(f64, Vec<String>)> = s.iter().map(|e| (e.time, e.files.clone())).collect();
         let at = |f: &str| dir.join(f).to_str().unwrap().to_owned();
         assert_eq!(
             got,
             [
-                (0.1, 0, at("sub/a.vtu")),
-                (0.2, 1, at("b1.vtu")),
-                (0.2, 0, at("b0.vtu"))
+                (0.1, vec![at("sub/a.vtu")]),
+                (0.2, vec![at("b1.vtu"), at("b0.vtu")])
             ]
         );
         std::fs::write(&pvd, "<VTKFile type=\"Collection\"><Collection>").unwrap();

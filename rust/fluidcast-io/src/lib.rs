@@ -635,13 +635,10 @@ impl Input {
         let (Input::Series(c), Some(time)) = (self, time) else {
             return None;
         };
-        let parts: Vec<PathBuf> = c
-            .entries
-            .iter()
-            .filter(|e| e.timestep == time)
-            .map(|e| e.file.clone())
-            .collect();
-        (parts.len() > 1).then_some(parts)
+        let step = c
+            .steps()
+            .find(|s| s.first().is_some_and(|e| e.timestep == time))?;
+        (step.len() > 1).then(|| step.iter().map(|e| e.file.clone()).collect())
     }
 
     /// Frames as (time, file); a single file has one frame at the time in its `TIME` field
@@ -652,15 +649,11 @@ impl Input {
     pub fn frames(&self) -> Vec<Frame> {
         match self {
             Input::File(p) => vec![(None, p.clone())],
-            Input::Series(c) => {
-                let mut out: Vec<Frame> = Vec::new();
-                for e in &c.entries {
-                    if out.last().is_none_or(|(t, _)| *t != Some(e.timestep)) {
-                        out.push((Some(e.timestep), e.file.clone()));
-                    }
-                }
-                out
-            }
+            Input::Series(c) => c
+                .steps()
+                .filter_map(|s| s.first())
+                .map(|e| (Some(e.timestep), e.file.clone()))
+                .collect(),
         }
     }
 }

@@ -25,19 +25,19 @@ pub struct Collection {
 }
 
 impl Collection {
+    /// The entries grouped by time, in time order: one group a distinct time. ParaView shows
+    /// the data sets of one time together (the `part`s of one step: fluid and boundary, or one
+    /// file per phase); `fluidcast render` and `vtkFluidCastReader` append them.
+    pub fn steps(&self) -> impl Iterator<Item = &[CollectionEntry]> {
+        self.entries.chunk_by(|a, b| a.timestep == b.timestep)
+    }
+
     /// The times at which the collection lists more than one data set, with how many.
-    /// ParaView shows the data sets of one time together (the `part`s of one step: fluid and
-    /// boundary, or one file per phase); `vtkFluidCastReader` appends them into one data set.
     pub fn shared_times(&self) -> Vec<(f64, usize)> {
-        let mut out: Vec<(f64, usize)> = Vec::new();
-        for e in &self.entries {
-            match out.last_mut() {
-                Some((t, n)) if *t == e.timestep => *n += 1,
-                _ => out.push((e.timestep, 1)),
-            }
-        }
-        out.retain(|&(_, n)| n > 1);
-        out
+        self.steps()
+            .filter(|s| s.len() > 1)
+            .filter_map(|s| Some((s.first()?.timestep, s.len())))
+            .collect()
     }
 }
 
