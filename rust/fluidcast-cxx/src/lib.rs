@@ -1103,6 +1103,18 @@ mod tests {
         }
     }
 
+    /// A 30° perspective camera at `position` looking at the test cube's centre, y up.
+    fn cube_camera(position: [f64; 3]) -> ffi::CameraDesc {
+        ffi::CameraDesc {
+            position,
+            focal_point: [0.25, 0.25, 0.25],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 30.0,
+            parallel_projection: false,
+            parallel_scale: 1.0,
+        }
+    }
+
     fn ready(r: &mut Renderer) {
         let xyz = cube(6, 0.1);
         r.begin_data("test cube");
@@ -1110,15 +1122,7 @@ mod tests {
         let vals: Vec<f32> = (0..xyz.len() / 3).map(|i| (i % 7) as f32).collect();
         r.add_point_array_f32("value", 1, &vals).unwrap();
         r.configure(&settings()).unwrap();
-        r.set_camera(&ffi::CameraDesc {
-            position: [0.25, 0.25, 3.0],
-            focal_point: [0.25, 0.25, 0.25],
-            view_up: [0.0, 1.0, 0.0],
-            view_angle: 30.0,
-            parallel_projection: false,
-            parallel_scale: 1.0,
-        })
-        .unwrap();
+        r.set_camera(&cube_camera([0.25, 0.25, 3.0])).unwrap();
         r.set_transfer_function(0.0, 6.0, &[0.0, 0.0, 1.0, 1.0, 0.0, 0.0], &[0.2, 0.8], 0.1)
             .unwrap();
     }
@@ -1241,14 +1245,7 @@ mod tests {
         // The same view again takes the kept cut; another view its own, as a renderer that
         // never saw the first view makes it.
         assert_eq!(render(&mut r).unwrap().0, rgba);
-        let turned = ffi::CameraDesc {
-            position: [1.6, 0.9, 2.4],
-            focal_point: [0.25, 0.25, 0.25],
-            view_up: [0.0, 1.0, 0.0],
-            view_angle: 30.0,
-            parallel_projection: false,
-            parallel_scale: 1.0,
-        };
+        let turned = cube_camera([1.6, 0.9, 2.4]);
         r.set_camera(&turned).unwrap();
         let (mut fresh, _, _) = big_cube(|i| (i as f32 * 0.37).sin());
         fresh.configure(&s).unwrap();
@@ -1256,15 +1253,7 @@ mod tests {
         let there = render(&mut r).unwrap().0;
         assert_eq!(there, render(&mut fresh).unwrap().0);
         assert_ne!(there, rgba);
-        r.set_camera(&ffi::CameraDesc {
-            position: [0.25, 0.25, 3.0],
-            focal_point: [0.25, 0.25, 0.25],
-            view_up: [0.0, 1.0, 0.0],
-            view_angle: 30.0,
-            parallel_projection: false,
-            parallel_scale: 1.0,
-        })
-        .unwrap();
+        r.set_camera(&cube_camera([0.25, 0.25, 3.0])).unwrap();
         let says = format!("of {n} particles");
         assert!(
             info.notes.contains("level of detail 2 px") && info.notes.contains(&says),
