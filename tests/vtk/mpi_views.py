@@ -1,6 +1,7 @@
 """The views the MPI tests render (pvbatch_mpi_render.py under pvbatch, pvserver_mpi.py as a
 client): a particle file with the "fluidcast" representation, four camera directions, one
-screenshot each. Imported by those scripts (they put this folder on sys.path)."""
+screenshot each. Imported by those scripts (they put this folder on sys.path), and by the
+other pvbatch scripts for the bare white view they all compare screenshots in."""
 import os
 
 from paraview.simple import (
@@ -23,19 +24,26 @@ W, H = 320, 240
 VIEWS = [("front", 0, 0), ("x", 90, 0), ("top", 0, 89), ("oblique", 35, 25)]
 
 
+def white_view(width, height):
+    """A render view of `width` x `height` pixels on a plain white background, without the
+    orientation axes: what the tests' screenshots are compared in."""
+    view = CreateView("RenderView")
+    view.ViewSize = [width, height]
+    view.OrientationAxesVisibility = 0
+    if hasattr(view, "UseColorPaletteForBackground"):
+        view.UseColorPaletteForBackground = 0
+    view.Background = [1.0, 1.0, 1.0]
+    return view
+
+
 def render_views(data, array, out, tolerance, radius=(), remote_render_threshold=None):
     """Saves OUT/<view>.png for each of VIEWS; returns the representation's information
     properties (rank 0's owned and halo particles, its box, the last error)."""
     reader = OpenDataFile(data)
-    view = CreateView("RenderView")
-    view.ViewSize = [W, H]
-    view.OrientationAxesVisibility = 0
+    view = white_view(W, H)
     # ParaView applies FXAA to the composited image on several ranks but not to a volume on
     # one: the comparison is of the renderings, so none.
     view.UseFXAA = 0
-    if hasattr(view, "UseColorPaletteForBackground"):
-        view.UseColorPaletteForBackground = 0
-    view.Background = [1.0, 1.0, 1.0]
     if remote_render_threshold is not None:
         view.RemoteRenderThreshold = remote_render_threshold
     display = Show(reader, view)

@@ -27,9 +27,9 @@ import os
 import subprocess
 import sys
 
+from mpi_views import white_view  # tests/vtk, the script's folder
 from paraview.simple import (
     ColorBy,
-    CreateView,
     GetActiveCamera,
     GetColorTransferFunction,
     GetOpacityTransferFunction,
@@ -39,7 +39,7 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
 )
-from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
+from pvbatch_mpi import missing_data
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkIOImage import vtkPNGReader
 
@@ -59,12 +59,7 @@ W, H = 320, 240
 
 LoadPlugin(plugin, remote=False, ns=globals())
 reader = OpenDataFile(data)
-view = CreateView("RenderView")
-view.ViewSize = [W, H]
-view.OrientationAxesVisibility = 0
-if hasattr(view, "UseColorPaletteForBackground"):
-    view.UseColorPaletteForBackground = 0
-view.Background = [1.0, 1.0, 1.0]
+view = white_view(W, H)
 
 display = Show(reader, view)
 display.SetRepresentationType("fluidcast")

@@ -28,9 +28,9 @@ import xml.etree.ElementTree as ET
 
 faulthandler.enable(file=sys.__stderr__)
 
+from mpi_views import white_view  # tests/vtk, the script's folder
 from paraview.simple import (
     ColorBy,
-    CreateView,
     Delete,
     GetAnimationScene,
     GetColorTransferFunction,
@@ -43,7 +43,7 @@ from paraview.simple import (
     Show,
     servermanager,
 )
-from pvbatch_mpi import missing_data  # tests/vtk, the script's folder
+from pvbatch_mpi import missing_data
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
 from vtkmodules.vtkIOImage import vtkPNGReader
@@ -61,12 +61,7 @@ original_window = vtkOutputWindow.GetInstance()
 messages = vtkStringOutputWindow()
 vtkOutputWindow.SetInstance(messages)
 
-view = CreateView("RenderView")
-view.ViewSize = [W, H]
-view.OrientationAxesVisibility = 0
-if hasattr(view, "UseColorPaletteForBackground"):
-    view.UseColorPaletteForBackground = 0
-view.Background = [1.0, 1.0, 1.0]
+view = white_view(W, H)
 scene = GetAnimationScene()
 failures = []
 
