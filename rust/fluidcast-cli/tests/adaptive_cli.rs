@@ -367,6 +367,17 @@ fn the_parts_of_one_time_render_as_one_frame() {
     assert_eq!(compare(&p("f_000.exr"), &p("both.exr")), (0.0, 0.0));
     // The second time is a.vtu alone: another image.
     assert!(compare(&p("f_001.exr"), &p("both.exr")).0 > 0.01);
+    // The appended frame is named as such (a particle index in a message counts in it).
+    let pvd = p("s.pvd");
+    let (ok, out, err) = run(&["info", pvd.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("2 frames (3 data sets)")
+            && out.contains("s.pvd at t = 0.5 (")
+            && out.contains("and 1 more data sets)")
+            && out.contains("points: 432"),
+        "{out}"
+    );
     // Two times, so two frames (three data sets).
     let (ok, _, err) = render("s.pvd", "g_%03d.exr", "0:3");
     assert!(ok && err.contains("\n2 frames in"), "{err}");

@@ -608,9 +608,12 @@ impl Input {
     }
 
     /// Reads one of [`Input::frames`], decoding the point arrays `arrays` selects: its file,
-    /// or every part of its time appended (points, and the point arrays every part has).
+    /// or every part of its time appended (points, and the point arrays every part has),
+    /// named in messages as "SERIES.pvd at t = T (FIRST and N more data sets)" so that a
+    /// particle index points into the appended frame, not into its first file.
     pub fn read_frame(&self, frame: &Frame, arrays: &Arrays) -> Result<Dataset, ReadError> {
-        let Some(parts) = self.parts_at(frame.0) else {
+        let (Input::Series(c), Some(time), Some(parts)) = (self, frame.0, self.parts_at(frame.0))
+        else {
             return self.read_with(&frame.1, arrays);
         };
         let pieces = parts
@@ -618,7 +621,13 @@ impl Input {
             .map(|p| self.read_with(p, arrays))
             .collect::<Result<Vec<_>, _>>()?;
         let kind = pieces.first().map_or(DatasetKind::PolyData, |d| d.kind);
-        Ok(parallel::concat(&frame.1, kind, &pieces))
+        let name = format!(
+            "{} at t = {time} ({} and {} more data sets)",
+            c.path.display(),
+            frame.1.display(),
+            parts.len() - 1
+        );
+        Ok(parallel::concat(Path::new(&name), kind, &pieces))
     }
 
     /// [`Input::open_lazy`] of one of [`Input::frames`]; a frame of several parts is read
