@@ -94,6 +94,10 @@ pub struct SamplingArgs {
     /// Never render cells as super-pixels.
     #[arg(long)]
     pub no_superpixels: bool,
+    /// Cast every pixel: no image-space interpolation between every second pixel in the
+    /// relaxed mode.
+    #[arg(long)]
+    pub no_interpolation: bool,
     /// Do not force cells with surface particles to full rate.
     #[arg(long)]
     pub no_surface_cells: bool,
@@ -163,6 +167,7 @@ impl SamplingArgs {
             relax: self.relax,
             superpixels: !self.no_superpixels,
             surface_cells: !self.no_surface_cells,
+            interpolate: !self.no_interpolation,
         };
         if self.strict {
             adaptive = adaptive.strict();

@@ -6,7 +6,9 @@ use std::time::Instant;
 use fluidcast_grid::Cell;
 use fluidcast_image::Image;
 use fluidcast_plan::{PlanError, PlanStats};
-use fluidcast_render::{ms, validate, RenderError, RenderParams, RenderStats, Rendered};
+use fluidcast_render::{
+    interpolate, ms, validate, RenderError, RenderParams, RenderStats, Rendered,
+};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction, ViewFrame};
 
@@ -139,9 +141,33 @@ impl Gpu {
         let plan = self.plan(&mut ctx, &grid, particles, surface, tf, params)?;
         push_stage(&mut ctx.stats, "adapt", ms(t1));
         let t2 = Instant::now();
+        let refine = match params.adaptive.tolerance {
+            Some(e) if interpolate::applies(particles, &frame, params) => {
+                // The passes give each pixel a depth range in the depth-limit buffer, which
+                // the shader reads with bit 0 set (the plan, which reads it too, has run).
+                ctx.u.has_limit |= 1;
+                ctx.update(self);
+                Some(e)
+            }
+            _ => None,
+        };
         let casting = grid.casting(&plan, &ctx.frame_buf, &ctx.guard);
         let (timer, stats) = (&mut ctx.timer, &mut ctx.stats);
-        self.raycast(&casting, params, timer, stats, &mut image)?;
+        match refine {
+            Some(e) => {
+                let mut samples = 0;
+                let mut cast = |p: &RenderParams| {
+                    let mut pass = Image::new(p.width, p.height);
+                    self.raycast(&casting, p, timer, stats, &mut pass)?;
+                    samples += stats.samples;
+                    Ok::<_, GpuError>(pass)
+                };
+                let (refined, counts) = interpolate::cast_refined(params, &frame, e, &mut cast)?;
+                (image, stats.samples, stats.interpolated) =
+                    (refined, samples, counts.interpolated);
+            }
+            None => self.raycast(&casting, params, timer, stats, &mut image)?,
+        }
         push_stage(&mut ctx.stats, "raycast", ms(t2));
         self.plan_results(&mut ctx, &plan, grid.cells_n, params, &mut image)?;
         let dumped = match dump {

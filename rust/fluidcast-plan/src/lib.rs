@@ -74,6 +74,10 @@ pub struct PlanParams {
     pub superpixels: bool,
     /// Force cells that reference surface particles to full rate (Sec. 4.2).
     pub surface_cells: bool,
+    /// Relaxed mode only: cast every second pixel of every second row first, and interpolate
+    /// the pixels between where the image is smooth (image-space refinement, beyond the
+    /// paper: `fluidcast_render::interpolate`).
+    pub interpolate: bool,
 }
 
 impl Default for PlanParams {
@@ -83,6 +87,7 @@ impl Default for PlanParams {
             relax: 1.0,
             superpixels: true,
             surface_cells: true,
+            interpolate: true,
         }
     }
 }
@@ -108,10 +113,12 @@ impl PlanParams {
         Ok(())
     }
 
-    /// The strict mode: no relaxation and no super-pixels, so the bound is a guarantee.
+    /// The strict mode: no relaxation, no super-pixels and no interpolation, so the bound is
+    /// a guarantee.
     pub fn strict(mut self) -> Self {
         self.relax = 0.0;
         self.superpixels = false;
+        self.interpolate = false;
         self
     }
 }

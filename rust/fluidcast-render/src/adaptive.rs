@@ -127,35 +127,23 @@ pub fn render_adaptive(
         plan,
         mut stats,
     } = plan_adaptive(particles, surface, camera, tf, params)?;
-    let (w, h) = (params.width, params.height);
 
     let t2 = Instant::now();
-    let mut image = Image::new(w, h);
     let lookup = TfLookup::new(tf);
-    if let Some(depths) = &grid.depths {
-        let dz = grid.params.depth_samples as usize;
-        let results: Vec<BundleResult> = (0..grid.bundle_count())
-            .into_par_iter()
-            .filter(|&b| !grid.bundle_cells(b).is_empty())
-            .map_init(
-                || BundleScratch::new(grid.params.bundle as usize, dz),
-                |scratch, b| cast_bundle(&grid, &plan, depths, &lookup, params, b, scratch),
-            )
-            .collect();
-        for (b, px, n) in results {
-            stats.samples += n;
-            let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-            let mut k = 0;
-            for j in y0..y1 {
-                for i in x0..x1 {
-                    let idx = image.index(i, j);
-                    image.rgba[idx] = px[k].0;
-                    image.depth[idx] = px[k].1;
-                    k += 1;
-                }
-            }
+    let mut cast = |p: &RenderParams| {
+        let (image, samples) = cast_planned(&grid, &plan, &lookup, p);
+        stats.samples += samples;
+        Ok::<_, RenderError>(image)
+    };
+    let mut image = match params.adaptive.tolerance {
+        Some(e) if crate::interpolate::applies(particles, &grid.frame, params) => {
+            let (image, refined) =
+                crate::interpolate::cast_refined(params, &grid.frame, e, &mut cast)?;
+            stats.interpolated = refined.interpolated;
+            image
         }
-    }
+        _ => cast(params)?,
+    };
     stats.stages.push(("raycast", ms(t2)));
     image.aovs = plan_aovs(&grid, &plan, image.width, image.height);
     stats.stages.push(("total", ms(t0)));
@@ -165,6 +153,44 @@ pub fn render_adaptive(
         grid,
         plan,
     })
+}
+
+/// The ray casting stage: the image of `grid` cast with `plan` (the pixels whose depth range
+/// is not empty), and the samples composited.
+fn cast_planned(
+    grid: &PerspectiveGrid,
+    plan: &SamplingPlan,
+    lookup: &TfLookup,
+    params: &RenderParams,
+) -> (Image, u64) {
+    let mut image = Image::new(params.width, params.height);
+    let Some(depths) = &grid.depths else {
+        return (image, 0);
+    };
+    let dz = grid.params.depth_samples as usize;
+    let results: Vec<BundleResult> = (0..grid.bundle_count())
+        .into_par_iter()
+        .filter(|&b| !grid.bundle_cells(b).is_empty())
+        .map_init(
+            || BundleScratch::new(grid.params.bundle as usize, dz),
+            |scratch, b| cast_bundle(grid, plan, depths, lookup, params, b, scratch),
+        )
+        .collect();
+    let mut samples = 0;
+    for (b, px, n) in results {
+        samples += n;
+        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
+        let mut k = 0;
+        for j in y0..y1 {
+            for i in x0..x1 {
+                let idx = image.index(i, j);
+                image.rgba[idx] = px[k].0;
+                image.depth[idx] = px[k].1;
+                k += 1;
+            }
+        }
+    }
+    (image, samples)
 }
 
 /// Per-thread working memory of [`cast_bundle`]: the span's kernel sums and particles, and
@@ -260,12 +286,15 @@ fn cast_bundle(
         .map(|(i, j)| Ray::through_pixel(&grid.frame, i, j))
         .collect();
     let lines = BundleLines::new(&rays, width);
-    let lanes = BundleRays::new(&rays, width);
     let mut comps: Vec<Compositor> = pixels
         .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
+    // The rays to cast, packed: a pixel whose depth range is empty is done before it starts
+    // (see RenderParams::depth_range_at) and takes no lane.
+    let cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
+    let lanes = BundleRays::new(cast.iter().map(|&r| ((r % width, r / width), rays[r])));
     for span in plan.bundle_spans(b) {
-        if comps.iter().all(|c| c.done) {
+        if cast.iter().all(|&r| comps[r].done) {
             break;
         }
         let first = span.first as usize;
@@ -291,8 +320,8 @@ fn cast_bundle(
         zs.set((0..=n).map(|m| depths.z[k0 + m * step]));
         local.clear();
         local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
-        for (r, c) in comps.iter().enumerate() {
-            live[lanes.slot(r)] = !c.done;
+        for (slot, &r) in cast.iter().enumerate() {
+            live[slot] = !comps[r].done;
         }
         pulp::Arch::new().dispatch(Scatter {
             sums,
@@ -304,8 +333,8 @@ fn cast_bundle(
             kernel: params.kernel,
             field: params.field,
         });
-        for (r, (ray, c)) in rays.iter().zip(comps.iter_mut()).enumerate() {
-            let slot = lanes.slot(r);
+        for (slot, &r) in cast.iter().enumerate() {
+            let (ray, c) = (&rays[r], &mut comps[r]);
             for m in sums.touched(slot) {
                 if c.done {
                     break;
@@ -482,6 +511,53 @@ mod tests {
             let (cols, rows) = lines.footprint(&p);
             assert!(cols.contains(&3) && rows.contains(&3), "{cols:?} {rows:?}");
             assert!(cols.len() <= 3 && rows.len() <= 3, "{cols:?} {rows:?}");
+        }
+    }
+
+    /// A pass of the ray casting stage casts exactly the pixels whose depth range is not
+    /// empty, each exactly as a pass over every pixel does (same bits: packing a ray into
+    /// another lane changes nothing it sums), and leaves the others transparent at infinite
+    /// depth. Random masks on a cloud of particles, relaxed and full-rate plans, both
+    /// projections, an image whose edge cuts bundles.
+    #[test]
+    fn a_pass_casts_exactly_its_pixels() {
+        // Supports of 2–5 pixels' radius: footprints smaller than a bundle.
+        let p = fluidcast_testkit::cloud(3000, 3, (0.02, 0.03));
+        let mut tf = TransferFunction::preset("Viridis").unwrap();
+        (tf.range, tf.unit_distance) = ((-0.5, 1.0), 0.05);
+        let lookup = TfLookup::new(&tf);
+        let mut rnd = fluidcast_testkit::rng(9);
+        for (parallel, tolerance) in [(false, None), (true, Some(0.01)), (false, Some(0.004))] {
+            let camera = Camera {
+                position: [0.4, 0.3, 2.2],
+                parallel_projection: parallel,
+                parallel_scale: 0.6,
+                ..Camera::default()
+            };
+            let params = RenderParams {
+                width: 181,
+                height: 133,
+                adaptive: PlanParams {
+                    tolerance,
+                    ..Default::default()
+                },
+                ..Default::default()
+            };
+            let planned = plan_adaptive(&p, None, &camera, &tf, &params).unwrap();
+            let (full, _) = cast_planned(&planned.grid, &planned.plan, &lookup, &params);
+            assert!(full.rgba.iter().filter(|c| c[3] > 0.1).count() > 5000);
+            for share in [0.1f32, 0.5, 0.9] {
+                let mask: Vec<bool> = full.rgba.iter().map(|_| rnd() < share).collect();
+                let pass = crate::interpolate::pass_params(&params, &mask);
+                let (got, _) = cast_planned(&planned.grid, &planned.plan, &lookup, &pass);
+                for (k, &m) in mask.iter().enumerate() {
+                    let want = match m {
+                        true => (full.rgba[k], full.depth[k]),
+                        false => ([0.0; 4], f32::INFINITY),
+                    };
+                    assert_eq!((got.rgba[k], got.depth[k]), want, "pixel {k}, cast {m}");
+                }
+            }
         }
     }
 

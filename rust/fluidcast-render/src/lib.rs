@@ -20,6 +20,7 @@
 mod adaptive;
 pub mod bluenoise;
 mod crop;
+pub mod interpolate;
 mod object_space;
 mod overlay;
 mod perspective;
@@ -288,6 +289,9 @@ pub struct RenderStats {
     /// Perspective grid only: particle references of tiles not resampled because every
     /// pixel they reach had stopped ([`RenderParams::occlusion_culling`]).
     pub culled: u64,
+    /// Grid renderer, relaxed mode: pixels filled by interpolation instead of cast
+    /// ([`interpolate`]).
+    pub interpolated: u64,
 }
 
 impl RenderStats {

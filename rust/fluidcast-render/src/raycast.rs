@@ -154,7 +154,8 @@ impl Compositor {
             trans: 1.0,
             depth: f32::INFINITY,
             samples: 0,
-            done: false,
+            // An empty range composites nothing: the ray is done before it starts.
+            done: limit <= near,
             near,
             limit,
         }

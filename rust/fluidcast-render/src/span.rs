@@ -24,12 +24,33 @@ use fluidcast_sph::{FieldKind, Kernel};
 /// Rays handled side by side: one group of a bundle row.
 pub(crate) const LANES: usize = 8;
 
-/// One lane group of a bundle row: the rays' origins, directions and |d|², component-wise.
-#[derive(Debug, Clone, Copy, Default)]
+/// One lane group: up to [`LANES`] rays of a bundle, their origins, directions and |d|²,
+/// component-wise, the column and row of each in the bundle (`u16::MAX` on padding lanes), and
+/// the smallest columns × rows box that holds them all.
+#[derive(Debug, Clone, Copy)]
 struct RayGroup {
     o: [[f64; LANES]; 3],
     d: [[f64; LANES]; 3],
     dd: [f64; LANES],
+    col: [u16; LANES],
+    row: [u16; LANES],
+    cols: (u16, u16),
+    rows: (u16, u16),
+}
+
+impl Default for RayGroup {
+    fn default() -> Self {
+        RayGroup {
+            o: [[0.0; LANES]; 3],
+            d: [[0.0; LANES]; 3],
+            // Padding lanes are never in a footprint; dd = 1 keeps their arithmetic finite.
+            dd: [1.0; LANES],
+            col: [u16::MAX; LANES],
+            row: [u16::MAX; LANES],
+            cols: (u16::MAX, 0),
+            rows: (u16::MAX, 0),
+        }
+    }
 }
 
 /// A particle's passage near the rays of a lane group (Ray::closest_approach per lane): depth
@@ -51,14 +72,22 @@ struct Particle {
 }
 
 impl RayGroup {
+    /// True when some lane's ray lies in the footprint `cols` × `rows`.
+    #[inline(always)]
+    fn meets(&self, cols: &Range<usize>, rows: &Range<usize>) -> bool {
+        let overlaps = |(lo, hi): (u16, u16), r: &Range<usize>| {
+            usize::from(lo) < r.end && usize::from(hi) >= r.start
+        };
+        overlaps(self.cols, cols) & overlaps(self.rows, rows)
+    }
+
     /// The closest approach of each lane's ray to `p` (its depth relative to `z_org`); `None`
-    /// when no lane of group `g` is in `cols`, live, and inside the support.
+    /// when no lane is in `cols` × `rows`, live, and inside the support.
     #[inline(always)]
     fn near(
         &self,
         p: &ViewParticle,
-        cols: &Range<usize>,
-        g: usize,
+        (cols, rows): (&Range<usize>, &Range<usize>),
         live: &[bool],
         z_org: f64,
     ) -> Option<Near> {
@@ -76,8 +105,13 @@ impl RayGroup {
             let t = (d[0][l] * cx + d[1][l] * cy + d[2][l] * cz) / self.dd[l];
             let (qx, qy, qz) = (cx - t * d[0][l], cy - t * d[1][l], cz - t * d[2][l]);
             let r2 = qx * qx + qy * qy + qz * qz;
-            let col = g * LANES + l;
-            let on = (col >= cols.start) & (col < cols.end) & (r2 < h2) & live[l];
+            let (col, row) = (usize::from(self.col[l]), usize::from(self.row[l]));
+            let on = (col >= cols.start)
+                & (col < cols.end)
+                & (row >= rows.start)
+                & (row < rows.end)
+                & (r2 < h2)
+                & live[l];
             near.t[l] = (t - z_org) as f32;
             near.r2[l] = r2 as f32;
             near.mask[l] = if on { 1.0 } else { 0.0 };
@@ -87,50 +121,47 @@ impl RayGroup {
     }
 }
 
-/// A bundle's rays as lane groups (row-major; `groups` per row, the last one padded).
+/// Some rays of a bundle, packed [`LANES`] to a group in the order given: ray `r` of that
+/// order is in slot `r` (lane `r % LANES` of group `r / LANES`). All of a bundle's rays in
+/// row-major order fill its rows group by group; a subset (the pixels still to cast) packs
+/// densely, so that rays not cast cost no lanes.
 #[derive(Debug, Clone)]
 pub(crate) struct BundleRays {
-    width: usize,
-    groups: usize,
-    rows: Vec<RayGroup>,
+    groups: Vec<RayGroup>,
 }
 
 impl BundleRays {
-    /// `rays` in row-major order, `width` per row.
-    pub fn new(rays: &[Ray], width: usize) -> BundleRays {
-        let groups = width.div_ceil(LANES);
-        let height = rays.len() / width.max(1);
-        let mut rows = vec![RayGroup::default(); height * groups];
-        for (r, ray) in rays.iter().enumerate() {
-            let (j, i) = (r / width, r % width);
-            let g = &mut rows[j * groups + i / LANES];
-            let l = i % LANES;
+    /// `rays`, each with its (column, row) in the bundle (below 2¹⁶).
+    pub fn new(rays: impl IntoIterator<Item = ((usize, usize), Ray)>) -> BundleRays {
+        let mut groups: Vec<RayGroup> = Vec::new();
+        for (r, ((i, j), ray)) in rays.into_iter().enumerate() {
+            if r % LANES == 0 {
+                groups.push(RayGroup::default());
+            }
+            let Some(g) = groups.last_mut() else {
+                continue;
+            };
+            let l = r % LANES;
             for a in 0..3 {
                 g.o[a][l] = ray.o[a];
                 g.d[a][l] = ray.d[a];
             }
             g.dd[l] = ray.dd;
+            let (i, j) = (
+                i.min(usize::from(u16::MAX - 1)) as u16,
+                j.min(usize::from(u16::MAX - 1)) as u16,
+            );
+            (g.col[l], g.row[l]) = (i, j);
+            g.cols = (g.cols.0.min(i), g.cols.1.max(i));
+            g.rows = (g.rows.0.min(j), g.rows.1.max(j));
         }
-        // Padding lanes (still dd = 0) are never in a footprint; dd = 1 keeps their arithmetic
-        // finite.
-        for g in &mut rows {
-            for dd in &mut g.dd {
-                if *dd == 0.0 {
-                    *dd = 1.0;
-                }
-            }
-        }
-        BundleRays {
-            width,
-            groups,
-            rows,
-        }
+        BundleRays { groups }
     }
 
-    /// The block slot of ray `r` (row-major index in the bundle).
-    #[inline]
-    pub fn slot(&self, r: usize) -> usize {
-        (r / self.width) * self.groups * LANES + r % self.width
+    /// Slots the rays take (whole groups).
+    #[cfg(test)]
+    pub fn slots(&self) -> usize {
+        self.groups.len() * LANES
     }
 }
 
@@ -223,7 +254,7 @@ pub(crate) struct SpanSums {
 }
 
 impl SpanSums {
-    /// Sums for `slots` rays (see [`BundleRays::slots`]) and up to `samples` samples.
+    /// Sums for `slots` rays (at least [`BundleRays::slots`]) and up to `samples` samples.
     pub fn new(slots: usize, samples: usize) -> SpanSums {
         SpanSums {
             stride: slots,
@@ -250,7 +281,7 @@ impl SpanSums {
         field: FieldKind,
     ) {
         let ks = within(zs.samples(), p.c[2] - p.h(), p.c[2] + p.h());
-        if ks.is_empty() || cols.is_empty() {
+        if ks.is_empty() || cols.is_empty() || rows.is_empty() {
             return;
         }
         // W = norm(H)·shape(r/H), the weights as Sums::scatter forms them (in double
@@ -266,38 +297,36 @@ impl SpanSums {
             w: [w as f32, (p.v() * norm) as f32],
         };
         let z_org = zs.origin();
-        for j in rows {
-            for g in cols.start / LANES..=(cols.end - 1) / LANES {
-                let slot = (j * rays.groups + g) * LANES;
-                let live = &live[slot..][..LANES];
-                let near = rays.rows[j * rays.groups + g].near(p, &cols, g, live, z_org);
-                if let Some(near) = near {
-                    self.touch(slot, &near, &at.ks);
-                    match kernel {
-                        Kernel::CubicSpline => {
-                            self.add(simd, |q| cubic(simd, q), &at, &near, &zs.rel, slot)
-                        }
-                        Kernel::Quintic => {
-                            self.add(simd, |q| quintic(simd, q), &at, &near, &zs.rel, slot)
-                        }
-                        Kernel::WendlandC2 => {
-                            self.add(simd, |q| wendland_c2(simd, q), &at, &near, &zs.rel, slot)
-                        }
-                        Kernel::WendlandC4 => {
-                            self.add(simd, |q| wendland_c4(simd, q), &at, &near, &zs.rel, slot)
-                        }
-                        Kernel::Poly6 => {
-                            self.add(simd, |q| poly6(simd, q), &at, &near, &zs.rel, slot)
-                        }
-                        Kernel::Gaussian => self.add(
-                            simd,
-                            |q| lane_by_lane(simd, q, |q| Kernel::Gaussian.shape(q)),
-                            &at,
-                            &near,
-                            &zs.rel,
-                            slot,
-                        ),
+        for (g, group) in rays.groups.iter().enumerate() {
+            if !group.meets(&cols, &rows) {
+                continue;
+            }
+            let slot = g * LANES;
+            let live = &live[slot..][..LANES];
+            if let Some(near) = group.near(p, (&cols, &rows), live, z_org) {
+                self.touch(slot, &near, &at.ks);
+                match kernel {
+                    Kernel::CubicSpline => {
+                        self.add(simd, |q| cubic(simd, q), &at, &near, &zs.rel, slot)
                     }
+                    Kernel::Quintic => {
+                        self.add(simd, |q| quintic(simd, q), &at, &near, &zs.rel, slot)
+                    }
+                    Kernel::WendlandC2 => {
+                        self.add(simd, |q| wendland_c2(simd, q), &at, &near, &zs.rel, slot)
+                    }
+                    Kernel::WendlandC4 => {
+                        self.add(simd, |q| wendland_c4(simd, q), &at, &near, &zs.rel, slot)
+                    }
+                    Kernel::Poly6 => self.add(simd, |q| poly6(simd, q), &at, &near, &zs.rel, slot),
+                    Kernel::Gaussian => self.add(
+                        simd,
+                        |q| lane_by_lane(simd, q, |q| Kernel::Gaussian.shape(q)),
+                        &at,
+                        &near,
+                        &zs.rel,
+                        slot,
+                    ),
                 }
             }
         }
@@ -471,10 +500,11 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
-        /// `near` marks exactly the lanes in `cols` whose ray is live and passes inside the
-        /// support (as [`Ray::passage`] decides), with each lane's closest approach, and is
-        /// `None` when it marks none. A 11-pixel-wide bundle: its second lane group has five
-        /// padding lanes, never marked.
+        /// `near` marks exactly the lanes in `cols` × `rows` whose ray is live and passes
+        /// inside the support (as [`Ray::passage`] decides), with each lane's closest
+        /// approach, and is `None` when it marks none; `meets` holds for every group that has
+        /// such a lane. The rays are a random subset of an 11 × 3 bundle, packed densely: a
+        /// group mixes rows, and the last one has padding lanes, never marked.
         #[test]
         fn near_marks_exactly_the_live_lanes_in_reach(
             parallel in any::<bool>(),
@@ -482,50 +512,53 @@ mod tests {
             depth in 0.5f64..3.0,
             h in 0.01f64..0.4,
             (c0, c1) in (0usize..11, 0usize..12),
-            live in prop::collection::vec(any::<bool>(), 16),
+            (r0, r1) in (0usize..3, 0usize..4),
+            cast in prop::collection::vec(any::<bool>(), 33),
+            live in prop::collection::vec(any::<bool>(), 40),
             j in 0usize..3,
             org in -0.5f64..0.5,
         ) {
             let camera = Camera { parallel_projection: parallel, parallel_scale: 0.6, ..Camera::default() };
             let frame = camera.frame(64, 48).unwrap();
             let (x0, y0, w) = (20u32, 17u32, 11usize);
-            let rays: Vec<Ray> = (0..3u32)
-                .flat_map(|j| (0..w as u32).map(move |i| (x0 + i, y0 + j)))
-                .map(|(i, j)| Ray::through_pixel(&frame, i, j))
-                .collect();
-            let bundle = BundleRays::new(&rays, w);
-            let cols = c0.min(c1)..c0.max(c1);
+            let pixels: Vec<(usize, usize)> = (0..33).filter(|&r| cast[r]).map(|r| (r % w, r / w)).collect();
+            let ray = |(i, j): (usize, usize)| Ray::through_pixel(&frame, x0 + i as u32, y0 + j as u32);
+            let bundle = BundleRays::new(pixels.iter().map(|&px| (px, ray(px))));
+            prop_assert_eq!(bundle.slots(), pixels.len().div_ceil(LANES) * LANES);
+            let (cols, rows) = (c0.min(c1)..c0.max(c1), r0.min(r1)..r0.max(r1));
             // The particle near the middle ray of row j, at the given depth.
-            let mid = &rays[j * w + 5];
+            let mid = ray((5, j));
             let p = ViewParticle::new(
                 [0, 1, 2].map(|k| mid.o[k] + depth * mid.d[k] + c[k] * h * 3.0),
                 h, 1.0, 1.0, 1.0,
             );
             // The span's origin: somewhere near the particle's depth.
             let z_org = depth + org;
-            for g in 0..2 {
-                let got = bundle.rows[j * bundle.groups + g].near(&p, &cols, g, &live[g * LANES..][..LANES], z_org);
+            for (g, group) in bundle.groups.iter().enumerate() {
+                let got = group.near(&p, (&cols, &rows), &live[g * LANES..][..LANES], z_org);
                 let mut any = false;
                 for l in 0..LANES {
-                    let col = g * LANES + l;
-                    let ray = (col < w).then(|| &rays[j * w + col]);
-                    let pass = ray.and_then(|r| r.passage(&p));
-                    let on = cols.contains(&col) && live[col] && pass.is_some();
+                    let px = pixels.get(g * LANES + l).copied();
+                    let r = px.map(ray);
+                    let pass = r.as_ref().and_then(|r| r.passage(&p));
+                    let on = px.is_some_and(|(i, j)| cols.contains(&i) && rows.contains(&j))
+                        && live[g * LANES + l] && pass.is_some();
                     any |= on;
-                    if let (Some(n), true) = (&got, on) {
-                        let (t, r2) = ray.map(|r| r.closest_approach(&p)).unwrap_or_default();
+                    if let (Some(n), true, Some(r)) = (&got, on, &r) {
+                        let (t, r2) = r.closest_approach(&p);
                         // Single precision, relative to the span's origin.
                         let rel = t - z_org;
                         let tol = 2e-7 * rel.abs() + 1e-12 * t.abs().max(1.0);
                         prop_assert!((f64::from(n.t[l]) - rel).abs() <= tol, "{} vs {}", n.t[l], rel);
                         prop_assert!((f64::from(n.r2[l]) - r2).abs() <= 2e-7 * r2 + 1e-12 * h * h);
-                        prop_assert_eq!(n.dd[l], ray.map_or(1.0, |r| r.dd) as f32);
+                        prop_assert_eq!(n.dd[l], r.dd as f32);
                     }
                     if let Some(n) = &got {
                         prop_assert_eq!(n.mask[l], if on { 1.0 } else { 0.0 }, "group {} lane {}", g, l);
                     }
                 }
                 prop_assert_eq!(got.is_some(), any, "group {}", g);
+                prop_assert!(!any || group.meets(&cols, &rows), "group {}", g);
             }
         }
     }

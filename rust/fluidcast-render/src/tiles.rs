@@ -230,6 +230,7 @@ fn add_stats(total: &mut RenderStats, tile: &RenderStats) {
     total.samples += tile.samples;
     total.pairs += tile.pairs;
     total.culled += tile.culled;
+    total.interpolated += tile.interpolated;
     total.cells += tile.cells;
     total.depth_samples = tile.depth_samples;
     total.near = tile.near;

@@ -118,6 +118,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     if (P.has_limit != 0u && in_image) {
         limit = depth_limit[j * P.width + i];
         near = depth_limit[(P.height + j) * P.width + i];
+        // An empty range composites nothing: done before it starts (Compositor::between).
+        done = limit <= near;
     }
 
     // Per sample of the span: Σ V A W (or Σ m W for the density field) and Σ V W.
