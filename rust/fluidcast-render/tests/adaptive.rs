@@ -327,7 +327,7 @@ fn assert_interpolates(name: &str, (_, total, interpolated): (u64, u64, u64), sh
 fn strict_bound_and_relaxed_share_on_radial_concentration() {
     let p = radial(1.0 / 18.0);
     let tf = banded((0.0, 1.8), 12, 0.15);
-    let counts = check_scene("radial", &p, &tf, (96, 72));
+    let counts = check_scene("radial", &p, &tf, (192, 144));
     assert_interpolates("radial", counts, 0.2);
     let (above, total, _) = counts;
     let share = above as f64 / total as f64;
@@ -352,7 +352,7 @@ fn strict_plan_adapts_on_a_checker_board() {
     // along its rays, which alone exceeds E_I).
     let mut tf = banded((0.0, 7.0), 4, 0.3);
     tf.opacity = vec![(0.0, 0.0), (0.49, 0.0), (0.51, 0.6), (1.0, 0.3)];
-    let counts = check_scene("checker board", &p, &tf, (128, 96));
+    let counts = check_scene("checker board", &p, &tf, (256, 192));
     assert_interpolates("checker board", counts, 0.2);
     let (above, total, _) = counts;
     assert!(
