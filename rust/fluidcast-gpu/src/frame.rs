@@ -140,6 +140,9 @@ impl Gpu {
         let t1 = Instant::now();
         let plan = self.plan(&mut ctx, &grid, particles, surface, tf, params)?;
         push_stage(&mut ctx.stats, "adapt", ms(t1));
+        // The plan's statistics and summaries (which bundles to refine), read back before
+        // the ray caster runs.
+        let summaries = self.plan_results(&mut ctx, &plan, grid.cells_n, params)?;
         let t2 = Instant::now();
         let refine = match params.adaptive.tolerance {
             Some(e) if interpolate::applies(particles, &frame, params) => {
@@ -162,14 +165,17 @@ impl Gpu {
                     samples += stats.samples;
                     Ok::<_, GpuError>(pass)
                 };
-                let (refined, counts) = interpolate::cast_refined(params, &frame, e, &mut cast)?;
+                let bundles = interpolate::refined_bundles(&summaries);
+                let (refined, counts) =
+                    interpolate::cast_refined(params, &frame, e, &bundles, &mut cast)?;
                 (image, stats.samples, stats.interpolated) =
                     (refined, samples, counts.interpolated);
             }
             None => self.raycast(&casting, params, timer, stats, &mut image)?,
         }
         push_stage(&mut ctx.stats, "raycast", ms(t2));
-        self.plan_results(&mut ctx, &plan, grid.cells_n, params, &mut image)?;
+        let (d, w, h) = (params.grid.bundle, params.width, params.height);
+        image.aovs = fluidcast_render::bundle_aovs(&summaries, d, w, h);
         let dumped = match dump {
             true => Some(self.dump(&grid, &plan, ctx.bundles)?),
             false => None,

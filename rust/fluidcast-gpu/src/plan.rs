@@ -4,9 +4,8 @@
 //! (`greedy`), which writes the spans the ray caster reads.
 
 use bytemuck::Zeroable;
-use fluidcast_image::Image;
 use fluidcast_plan::BundleSummary;
-use fluidcast_render::{bundle_aovs, plan_surface, RenderParams};
+use fluidcast_render::{plan_surface, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::TransferFunction;
 
@@ -136,35 +135,32 @@ impl Gpu {
         self.dispatch(pass, &self.pipes.greedy, &binds, ctx.bundles.div_ceil(64))
     }
 
-    /// The plan's statistics, and its per-bundle summaries as the image's AOVs.
+    /// The plan's statistics (into `ctx`), and its per-bundle summaries (none without a
+    /// tolerance).
     pub(crate) fn plan_results(
         &self,
         ctx: &mut FrameCtx,
         plan: &Plan,
         cells: u32,
         params: &RenderParams,
-        image: &mut Image,
-    ) -> Result<(), GpuError> {
+    ) -> Result<Vec<BundleSummary>, GpuError> {
         let nb = ctx.bundles as u64;
         let size = std::mem::size_of::<PlanCounters>() as u64;
         let got = self.fetch(&[(&plan.counters, size), (&plan.summaries, 32 * nb)])?;
         let counters: PlanCounters = bytemuck::pod_read_unaligned(&got[0]);
         ctx.stats.plan = Some(counters.stats(cells as u64));
-        if params.adaptive.tolerance.is_some() {
-            let s: Vec<[f32; 8]> = cast(&got[1]);
-            let summaries: Vec<BundleSummary> = s
-                .iter()
-                .map(|v| BundleSummary {
-                    predicted_error: v[0],
-                    mean_level: v[1],
-                    full: v[2],
-                    adapted: v[3],
-                    superpixel: v[4],
-                })
-                .collect();
-            let (d, w, h) = (params.grid.bundle, params.width, params.height);
-            image.aovs = bundle_aovs(&summaries, d, w, h);
+        if params.adaptive.tolerance.is_none() {
+            return Ok(Vec::new());
         }
-        Ok(())
+        let s: Vec<[f32; 8]> = cast(&got[1]);
+        Ok(s.iter()
+            .map(|v| BundleSummary {
+                predicted_error: v[0],
+                mean_level: v[1],
+                full: v[2],
+                adapted: v[3],
+                superpixel: v[4],
+            })
+            .collect())
     }
 }

@@ -137,8 +137,9 @@ pub fn render_adaptive(
     };
     let mut image = match params.adaptive.tolerance {
         Some(e) if crate::interpolate::applies(particles, &grid.frame, params) => {
+            let bundles = crate::interpolate::refined_bundles(&plan.summaries);
             let (image, refined) =
-                crate::interpolate::cast_refined(params, &grid.frame, e, &mut cast)?;
+                crate::interpolate::cast_refined(params, &grid.frame, e, &bundles, &mut cast)?;
             stats.interpolated = refined.interpolated;
             image
         }
@@ -168,9 +169,19 @@ fn cast_planned(
         return (image, 0);
     };
     let dz = grid.params.depth_samples as usize;
+    // A bundle with no cells, or whose pixels all have empty depth ranges, casts nothing.
+    let casts = |b: usize| {
+        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
+        (y0..y1).any(|j| {
+            (x0..x1).any(|i| {
+                let (near, far) = params.depth_range_at(i, j);
+                near < far
+            })
+        })
+    };
     let results: Vec<BundleResult> = (0..grid.bundle_count())
         .into_par_iter()
-        .filter(|&b| !grid.bundle_cells(b).is_empty())
+        .filter(|&b| !grid.bundle_cells(b).is_empty() && casts(b))
         .map_init(
             || BundleScratch::new(grid.params.bundle as usize, dz),
             |scratch, b| cast_bundle(grid, plan, depths, lookup, params, b, scratch),

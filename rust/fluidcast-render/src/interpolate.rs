@@ -66,8 +66,25 @@ pub const RECHECK_RADIUS: u32 = 2;
 /// checker board test's); 0.25 makes 0.004 % (0.012 %).
 pub const ESTIMATE_SHARE: f64 = 0.25;
 
-/// What the refinement did, in pixels: cast in the first pass (the lattice), cast in the second
-/// and third (of which `rechecked` in the third), and interpolated. They add up to the image.
+/// The share of a bundle's cells that its plan samples at full rate above which the bundle
+/// is refined; the others are cast whole in the first pass. Where the plan already made a
+/// bundle cheap (super-pixels, coarse levels: piecewise-constant attributes such as a phase
+/// id) the passes cost more than interpolation saves: on a 285k-particle three-phase dam
+/// break by `phase_id` refining every bundle made E_I = 0.004 1.96x faster than full rate,
+/// against 2.50x without refinement.
+pub const MIN_FULL_RATE_SHARE: f32 = 0.5;
+
+/// Which bundles to refine (see [`MIN_FULL_RATE_SHARE`]), from the plan's summaries.
+pub fn refined_bundles(summaries: &[fluidcast_plan::BundleSummary]) -> Vec<bool> {
+    summaries
+        .iter()
+        .map(|s| s.full > MIN_FULL_RATE_SHARE)
+        .collect()
+}
+
+/// What the refinement did, in pixels: cast in the first pass (`lattice`: the lattice, and the
+/// bundles not refined), cast in the second and third (of which `rechecked` in the third),
+/// and interpolated. They add up to the image.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Refined {
     pub lattice: u64,
@@ -260,20 +277,23 @@ fn interpolate(
     })
 }
 
-/// Every pixel's interpolation from the lattice pixels of `first` (row-major; `None` on the
-/// lattice and where there is none).
+/// The interpolation from the lattice pixels of `first` of every pixel the first pass did not
+/// cast (`cast`; row-major, `None` where there is none).
 fn estimates(
     first: &Image,
+    cast: &[bool],
     params: &RenderParams,
     frame: &ViewFrame,
     tolerance: f64,
 ) -> Vec<Option<Estimate>> {
-    let (w, h) = (first.width, first.height);
-    let rows: Vec<Vec<Option<Estimate>>> = (0..h)
-        .into_par_iter()
-        .map(|j| {
+    let w = first.width;
+    let rows: Vec<Vec<Option<Estimate>>> = cast
+        .par_chunks(w as usize)
+        .zip(0..first.height)
+        .map(|(row, j)| {
             (0..w)
-                .map(|i| match on_lattice(i, j) {
+                .zip(row)
+                .map(|(i, &c)| match c {
                     true => None,
                     false => interpolate(first, params, frame, tolerance, (i, j)),
                 })
@@ -320,15 +340,25 @@ pub fn cast_refined<E>(
     params: &RenderParams,
     frame: &ViewFrame,
     tolerance: f64,
+    refined: &[bool],
     mut cast: impl FnMut(&RenderParams) -> Result<Image, E>,
 ) -> Result<(Image, Refined), E> {
     let (w, h) = (params.width, params.height);
     let n = w as usize * h as usize;
+    // The first pass: the lattice, and every pixel of a bundle not refined.
+    let (d, across) = (
+        params.grid.bundle.max(1),
+        w.div_ceil(params.grid.bundle.max(1)),
+    );
+    let in_refined = |i: u32, j: u32| {
+        let b = (j / d * across + i / d) as usize;
+        refined.get(b).copied().unwrap_or(false)
+    };
     let lattice: Vec<bool> = (0..h)
-        .flat_map(|j| (0..w).map(move |i| on_lattice(i, j)))
+        .flat_map(|j| (0..w).map(move |i| on_lattice(i, j) || !in_refined(i, j)))
         .collect();
     let mut image = cast(&pass_params(params, &lattice))?;
-    let est = estimates(&image, params, frame, tolerance);
+    let est = estimates(&image, &lattice, params, frame, tolerance);
     let accepted: Vec<bool> = est.iter().map(|e| e.is_some_and(|e| e.accept)).collect();
     let rest: Vec<bool> = (0..n).map(|k| !lattice[k] && !accepted[k]).collect();
     let second = cast(&pass_params(params, &rest))?;
@@ -525,8 +555,15 @@ mod tests {
             ..params(w, h)
         };
         let mut passes = Vec::new();
-        let (got, refined) =
-            cast_refined(&prm, &frame(w, h), E, fake_caster(&truth, &mut passes)).unwrap();
+        let every = vec![true; 36];
+        let (got, refined) = cast_refined(
+            &prm,
+            &frame(w, h),
+            E,
+            &every,
+            fake_caster(&truth, &mut passes),
+        )
+        .unwrap();
         assert_eq!(passes.len(), 3);
         let lattice: Vec<bool> = (0..h)
             .flat_map(|j| (0..w).map(move |i| on_lattice(i, j)))
@@ -559,5 +596,26 @@ mod tests {
             err(line(40)) > 0.05,
             "row 40: the line was found without a surprise"
         );
+
+        // Bundles not refined (every other one here) are cast whole in the first pass.
+        let half: Vec<bool> = (0..36).map(|b| b % 2 == 0).collect();
+        let mut passes = Vec::new();
+        let (got, refined) = cast_refined(
+            &prm,
+            &frame(w, h),
+            E,
+            &half,
+            fake_caster(&truth, &mut passes),
+        )
+        .unwrap();
+        for (k, &c) in passes[0].iter().enumerate() {
+            let (i, j) = ((k % w as usize) as u32, (k / w as usize) as u32);
+            let b = (j / 8 * 6 + i / 8) as usize;
+            assert_eq!(c, on_lattice(i, j) || !half[b], "pixel ({i}, {j})");
+            if !half[b] {
+                assert_eq!(got.rgba[k], truth.rgba[k]);
+            }
+        }
+        assert_eq!(refined.lattice, count(&passes[0]));
     }
 }
