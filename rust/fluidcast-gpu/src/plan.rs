@@ -160,6 +160,7 @@ impl Gpu {
                 full: v[2],
                 adapted: v[3],
                 superpixel: v[4],
+                front_sampled: v[5],
             })
             .collect())
     }

@@ -161,6 +161,10 @@ pub struct BundleSummary {
     pub full: f32,
     pub adapted: f32,
     pub superpixel: f32,
+    /// 1 when the bundle's first (front-most) cell is sampled, 0 when it is a super-pixel or
+    /// the bundle is empty: where rays spend their work, since they stop in the first cells
+    /// of opaque fluid (the image-space refinement refines only such bundles).
+    pub front_sampled: f32,
 }
 
 /// Counts over all cells.
@@ -835,6 +839,7 @@ fn plan_bundle(
                 full: 1.0,
                 adapted: 0.0,
                 superpixel: 0.0,
+                front_sampled: if n > 0 { 1.0 } else { 0.0 },
             },
             stats,
         };
@@ -933,6 +938,10 @@ fn plan_bundle(
         }
     }
     let nn = n.max(1) as f32;
+    let front_sampled = match spans.first() {
+        Some(s) if s.superpixel.is_none() => 1.0,
+        _ => 0.0,
+    };
     BundlePlan {
         spans,
         levels,
@@ -944,6 +953,7 @@ fn plan_bundle(
             full: nfull as f32 / nn,
             adapted: nadapt as f32 / nn,
             superpixel: nsp as f32 / nn,
+            front_sampled,
         },
         stats,
     }

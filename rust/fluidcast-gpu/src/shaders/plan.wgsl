@@ -535,5 +535,7 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
     }
     summaries[2u * b] = vec4<f32>(predicted, f32(lsum) / f32(max(sampled, 1u)),
                                   f32(level_cells[0]) / nn, f32(adapted) / nn);
-    summaries[2u * b + 1u] = vec4<f32>(f32(n_sp) / nn, 0.0, 0.0, 0.0);
+    // BundleSummary::front_sampled: the first cell is sampled, not a super-pixel.
+    let front = select(0.0, 1.0, cnt > 0u && spans[c0].superpixel == 0u);
+    summaries[2u * b + 1u] = vec4<f32>(f32(n_sp) / nn, front, 0.0, 0.0);
 }
