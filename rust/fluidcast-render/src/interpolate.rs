@@ -11,10 +11,10 @@
 //!    `p₁ − 2p₂ + p₃` are at most 8 · [`ESTIMATE_SHARE`] · E_I: the linear midpoint errs by
 //!    about an eighth of them on a smooth image, and the cubic by less. A step between p₁ and
 //!    p₂ makes both large (their sum, the cubic's correction alone, cancels there). Pixels
-//!    are cast at the image's edge, where half opacity is reached by some nearest neighbours
-//!    and not by others (a silhouette), where the depth at half opacity steps by more than
-//!    [`MAX_SLOPE`] lateral pixel footprints (a grazing surface), and where a nearest
-//!    neighbour's depth range differs (opaque geometry, a cropping box).
+//!    are cast at the image's edge, where the depth at half opacity steps between stencil
+//!    pixels by more than [`MAX_SLOPE`] lateral pixel footprints per pixel (a grazing
+//!    surface) or is reached on one side only (a silhouette), and where a nearest neighbour's
+//!    depth range differs (opaque geometry, a cropping box).
 //! 3. **Second pass.** The pixels not accepted are cast.
 //! 4. **Recheck.** Where a pixel of the second pass misses its own interpolation by more than
 //!    [`SURPRISE_SHARE`] · E_I, the image holds detail the lattice does not see: the accepted
@@ -249,7 +249,8 @@ fn interpolate(
         .map(|k| second_difference([&v[0][k], &v[1][k], &v[2][k], &v[3][k]]));
     let curvature = along_rows.chain(along_cols).fold(0.0, f64::max);
     // Steepness: the largest depth step between neighbouring stencil pixels, in pixel
-    // footprints (2 per step at an inclination of 45°).
+    // footprints (2 per step at an inclination of 45°); a finite depth next to an infinite one
+    // is a silhouette.
     let steps_x = (0..ys.len()).flat_map(|r| (1..xs.len()).map(move |k| (z[r][k - 1], z[r][k])));
     let steps_y = (0..xs.len()).flat_map(|k| (1..ys.len()).map(move |r| (z[r - 1][k], z[r][k])));
     let steep = steps_x
@@ -259,9 +260,8 @@ fn interpolate(
             (false, false) => false,
             _ => true,
         });
-    // A silhouette (some neighbours reach half opacity, some do not), a steep surface, or an
+    // A steep surface (a silhouette included: half opacity reached on one side only), or an
     // estimate above the share of E_I: cast.
-    let silhouette = empty != 0 && empty != near;
     let curved = curvature / 8.0 > ESTIMATE_SHARE * tolerance;
     let [r, g, b, a] = cubic;
     Some(Estimate {
@@ -270,7 +270,7 @@ fn interpolate(
             0 => (depth / f64::from(near)) as f32,
             _ => f32::INFINITY,
         },
-        accept: !(silhouette || steep || curved),
+        accept: !(steep || curved),
     })
 }
 
