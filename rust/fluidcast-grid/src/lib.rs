@@ -191,6 +191,13 @@ pub fn bundle_pixels(width: u32, height: u32, size: u32, b: usize) -> [u32; 4] {
     ]
 }
 
+/// The ray bundle that holds pixel (i, j) of a `width`-pixel-wide image tiled into bundles of
+/// `size × size` pixels, as [`bundle_pixels`] lays them out.
+pub fn bundle_of(width: u32, size: u32, i: u32, j: u32) -> usize {
+    let size = size.max(1);
+    (j / size * width.div_ceil(size) + i / size) as usize
+}
+
 /// `[near, far]` from the smallest and largest view depth of any support (`zmin`, `zmax`):
 /// `None` when a perspective view has nothing in front of the camera; near is clamped to
 /// far·10⁻⁴ for a perspective view so that the log spacing stays finite. Shared with the GPU

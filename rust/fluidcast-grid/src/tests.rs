@@ -238,3 +238,23 @@ fn passage_enters_and_leaves_at_the_support_radius() {
         );
     }
 }
+
+/// `bundle_of` inverts `bundle_pixels`: every pixel of bundle b lies in bundle b, for image
+/// sizes that cut the last row and column of bundles, and bundles of one pixel.
+#[test]
+fn bundle_of_finds_the_bundle_whose_pixels_hold_it() {
+    for (w, h, size) in [(70u32, 53u32, 8u32), (64, 48, 8), (9, 5, 1), (33, 17, 16)] {
+        let bundles = (w.div_ceil(size) * h.div_ceil(size)) as usize;
+        let mut seen = 0;
+        for b in 0..bundles {
+            let [x0, x1, y0, y1] = bundle_pixels(w, h, size, b);
+            for j in y0..y1 {
+                for i in x0..x1 {
+                    assert_eq!(bundle_of(w, size, i, j), b, "{w}x{h} by {size}: ({i}, {j})");
+                    seen += 1;
+                }
+            }
+        }
+        assert_eq!(seen, w * h);
+    }
+}

@@ -343,12 +343,8 @@ pub fn cast_refined<E>(
     let (w, h) = (params.width, params.height);
     let n = w as usize * h as usize;
     // The first pass: the lattice, and every pixel of a bundle not refined.
-    let (d, across) = (
-        params.grid.bundle.max(1),
-        w.div_ceil(params.grid.bundle.max(1)),
-    );
     let in_refined = |i: u32, j: u32| {
-        let b = (j / d * across + i / d) as usize;
+        let b = fluidcast_grid::bundle_of(w, params.grid.bundle, i, j);
         refined.get(b).copied().unwrap_or(false)
     };
     let lattice: Vec<bool> = (0..h)

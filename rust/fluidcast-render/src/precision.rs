@@ -31,7 +31,7 @@ pub fn f32_explanation(
         return (false, false);
     };
     let dz = g.params.depth_samples as usize;
-    let b = ((j / g.params.bundle) * g.bundles_x + i / g.params.bundle) as usize;
+    let b = fluidcast_grid::bundle_of(g.frame.width, g.params.bundle, i, j);
     let ray = fluidcast_grid::Ray::through_pixel(&g.frame, i, j);
     let (mut edge, mut opaque) = (false, false);
     for s in planned.plan.bundle_spans(b) {
