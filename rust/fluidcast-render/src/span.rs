@@ -72,6 +72,26 @@ struct Particle {
 }
 
 impl RayGroup {
+    /// Up to [`LANES`] rays, each with its (column, row) in the bundle, in lane order.
+    fn of(rays: &[((usize, usize), Ray)]) -> RayGroup {
+        let mut g = RayGroup::default();
+        for (l, &((i, j), ray)) in rays.iter().enumerate().take(LANES) {
+            for a in 0..3 {
+                g.o[a][l] = ray.o[a];
+                g.d[a][l] = ray.d[a];
+            }
+            g.dd[l] = ray.dd;
+            let (i, j) = (
+                i.min(usize::from(u16::MAX - 1)) as u16,
+                j.min(usize::from(u16::MAX - 1)) as u16,
+            );
+            (g.col[l], g.row[l]) = (i, j);
+            g.cols = (g.cols.0.min(i), g.cols.1.max(i));
+            g.rows = (g.rows.0.min(j), g.rows.1.max(j));
+        }
+        g
+    }
+
     /// True when some lane's ray lies in the footprint `cols` × `rows`.
     #[inline(always)]
     fn meets(&self, cols: &Range<usize>, rows: &Range<usize>) -> bool {
@@ -133,29 +153,10 @@ pub(crate) struct BundleRays {
 impl BundleRays {
     /// `rays`, each with its (column, row) in the bundle (below 2¹⁶).
     pub fn new(rays: impl IntoIterator<Item = ((usize, usize), Ray)>) -> BundleRays {
-        let mut groups: Vec<RayGroup> = Vec::new();
-        for (r, ((i, j), ray)) in rays.into_iter().enumerate() {
-            if r % LANES == 0 {
-                groups.push(RayGroup::default());
-            }
-            let Some(g) = groups.last_mut() else {
-                continue;
-            };
-            let l = r % LANES;
-            for a in 0..3 {
-                g.o[a][l] = ray.o[a];
-                g.d[a][l] = ray.d[a];
-            }
-            g.dd[l] = ray.dd;
-            let (i, j) = (
-                i.min(usize::from(u16::MAX - 1)) as u16,
-                j.min(usize::from(u16::MAX - 1)) as u16,
-            );
-            (g.col[l], g.row[l]) = (i, j);
-            g.cols = (g.cols.0.min(i), g.cols.1.max(i));
-            g.rows = (g.rows.0.min(j), g.rows.1.max(j));
+        let rays: Vec<((usize, usize), Ray)> = rays.into_iter().collect();
+        BundleRays {
+            groups: rays.chunks(LANES).map(RayGroup::of).collect(),
         }
-        BundleRays { groups }
     }
 
     /// Slots the rays take (whole groups).
