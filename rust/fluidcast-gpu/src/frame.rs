@@ -170,6 +170,7 @@ impl Gpu {
                     interpolate::cast_refined(params, &frame, e, &bundles, &mut cast)?;
                 (image, stats.samples, stats.interpolated) =
                     (refined, samples, counts.interpolated);
+                stats.stages.extend(counts.stages);
             }
             None => self.raycast(&casting, params, timer, stats, &mut image)?,
         }

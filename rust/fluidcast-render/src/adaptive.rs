@@ -141,6 +141,7 @@ pub fn render_adaptive(
             let (image, refined) =
                 crate::interpolate::cast_refined(params, &grid.frame, e, &bundles, &mut cast)?;
             stats.interpolated = refined.interpolated;
+            stats.stages.extend(refined.stages);
             image
         }
         _ => cast(params)?,

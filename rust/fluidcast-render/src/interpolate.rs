@@ -32,6 +32,7 @@
 //! casts densely into its SIMD lanes, so that a pass costs what its rays cost.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use fluidcast_image::Image;
 use fluidcast_sph::Particles;
@@ -81,13 +82,16 @@ pub fn refined_bundles(summaries: &[fluidcast_plan::BundleSummary]) -> Vec<bool>
 
 /// What the refinement did, in pixels: cast in the first pass (`lattice`: the lattice, and the
 /// bundles not refined), cast in the second and third (of which `rechecked` in the third),
-/// and interpolated. They add up to the image.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// and interpolated. They add up to the image. `stages`: milliseconds of each pass and of the
+/// interpolation between them (`lattice`, `estimate`, `second`, `recheck`), as
+/// [`crate::RenderStats::stages`] lists them.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Refined {
     pub lattice: u64,
     pub cast: u64,
     pub rechecked: u64,
     pub interpolated: u64,
+    pub stages: Vec<(&'static str, f64)>,
 }
 
 /// True for the pixels of the first pass: even column and even row.
@@ -350,17 +354,27 @@ pub fn cast_refined<E>(
     let lattice: Vec<bool> = (0..h)
         .flat_map(|j| (0..w).map(move |i| on_lattice(i, j) || !in_refined(i, j)))
         .collect();
+    let mut stages = Vec::with_capacity(4);
+    let mut t = Instant::now();
+    let mut lap = |name: &'static str| {
+        stages.push((name, crate::ms(t)));
+        t = Instant::now();
+    };
     let mut image = cast(&pass_params(params, &lattice))?;
+    lap("lattice");
     let est = estimates(&image, &lattice, params, frame, tolerance);
     let accepted: Vec<bool> = est.iter().map(|e| e.is_some_and(|e| e.accept)).collect();
     let rest: Vec<bool> = (0..n).map(|k| !lattice[k] && !accepted[k]).collect();
+    lap("estimate");
     let second = cast(&pass_params(params, &rest))?;
+    lap("second");
     let surprise = surprises(&second, &rest, &est, tolerance);
     let recheck = near_surprises(&surprise, &accepted, w, h);
     let third = match recheck.iter().any(|&c| c) {
         true => Some(cast(&pass_params(params, &recheck))?),
         false => None,
     };
+    lap("recheck");
     for k in 0..n {
         let from = match (rest[k], recheck[k], &third, est[k]) {
             (true, _, _, _) => &second,
@@ -379,6 +393,7 @@ pub fn cast_refined<E>(
         cast: count(&rest) + count(&recheck),
         rechecked: count(&recheck),
         interpolated: count(&accepted) - count(&recheck),
+        stages,
     };
     Ok((image, refined))
 }
