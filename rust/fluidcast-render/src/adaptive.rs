@@ -9,7 +9,7 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
-use crate::span::{BundleRays, Scatter, SpanDepths, SpanSums, LANES};
+use crate::span::{BundleRays, Footprint, Scatter, SpanDepths, SpanSums, LANES};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 /// Neighbour-count ratio below which a particle counts as a surface particle (see
@@ -230,48 +230,127 @@ impl BundleScratch {
 /// The bundle's rays as lines `o + z·d` (d.z = 1) per column and per row: column `i` has
 /// x = `x[i].0 + z·x[i].1`, row `j` has y = `y[j].0 + z·y[j].1` (perspective rays start at
 /// the eye, parallel ones are parallel to the view axis).
+#[derive(Clone)]
 struct BundleLines {
     x: Vec<(f64, f64)>,
     y: Vec<(f64, f64)>,
+    fans: [Option<Fan>; 2],
+}
+
+/// Lines `o_k + z·d_k`, k = 0..n, whose `o` and `d` are affine in k, as a bundle's columns
+/// (rows) are: pixel centres are evenly spaced in the image plane, so at any depth z the
+/// lines are evenly spaced too, `x_k(z) = a(z) + k·s(z)` with a and s affine in z.
+#[derive(Debug, Clone, Copy)]
+struct Fan {
+    o0: f64,
+    d0: f64,
+    so: f64,
+    sd: f64,
+    n: usize,
+}
+
+impl Fan {
+    /// The fan through the first and last of `lines` (at least 2).
+    fn of(lines: &[(f64, f64)]) -> Option<Fan> {
+        let (&(o0, d0), &(o1, d1)) = (lines.first()?, lines.last()?);
+        let n = lines.len();
+        let k = (n as f64 - 1.0).max(1.0);
+        (n >= 2).then_some(Fan {
+            o0,
+            d0,
+            so: (o1 - o0) / k,
+            sd: (d1 - d0) / k,
+            n,
+        })
+    }
+
+    /// The lines whose coordinate lies in [lo, hi] at some depth of [za, zb] (za ≤ zb, both
+    /// ≥ 0). At one depth they are the k of an interval, `(lo − a)/s ≤ k ≤ (hi − a)/s`; its
+    /// ends are ratios of affine functions of z, monotonic, so the union over [za, zb] (an
+    /// interval, by continuity) runs from the smaller lower end to the larger upper end of
+    /// the two depths. Where s = 0 (the perspective eye, z = 0, where every line passes) an
+    /// end is ±∞ by the sign of s just beyond, or every line where the extent holds the eye.
+    #[inline(always)]
+    fn reach(&self, lo: f64, hi: f64, (za, zb): (f64, f64)) -> std::ops::Range<usize> {
+        let (mut kmin, mut kmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for z in [za, zb] {
+            let a = self.o0 + z * self.d0;
+            let s = self.so + z * self.sd;
+            let s = if s == 0.0 {
+                0.0f64.copysign(self.sd)
+            } else {
+                s
+            };
+            let (f, g) = ((lo - a) / s, (hi - a) / s);
+            let (f, g) = if s.is_sign_negative() { (g, f) } else { (f, g) };
+            // 0/0: the extent's edge passes through the eye, where every line does.
+            kmin = kmin.min(if f.is_nan() { f64::NEG_INFINITY } else { f });
+            kmax = kmax.max(if g.is_nan() { f64::INFINITY } else { g });
+        }
+        let n = self.n as f64;
+        let (first, end) = (kmin.ceil().max(0.0), (kmax.floor() + 1.0).min(n));
+        match first < end {
+            true => first as usize..end as usize,
+            false => self.n..self.n,
+        }
+    }
 }
 
 impl BundleLines {
     fn new(rays: &[Ray], width: usize) -> BundleLines {
+        let x: Vec<(f64, f64)> = rays[..width].iter().map(|r| (r.o[0], r.d[0])).collect();
+        let y: Vec<(f64, f64)> = rays
+            .iter()
+            .step_by(width)
+            .map(|r| (r.o[1], r.d[1]))
+            .collect();
         BundleLines {
-            x: rays[..width].iter().map(|r| (r.o[0], r.d[0])).collect(),
-            y: rays
-                .iter()
-                .step_by(width)
-                .map(|r| (r.o[1], r.d[1]))
-                .collect(),
+            fans: [Fan::of(&x), Fan::of(&y)],
+            x,
+            y,
         }
     }
+}
 
+impl Footprint for BundleLines {
     /// The columns and rows whose rays can enter particle `p`'s support: those whose x
     /// (resp. y) lies within the support's extent [c − H, c + H] at some depth inside
     /// [c.z − H, c.z + H]. Conservative (a superset, widened against rounding); the exact
     /// test is [`Ray::passage`]. Empty ranges when none can.
     #[inline(always)]
     fn footprint(&self, p: &ViewParticle) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
-        let (z0, z1) = (p.c[2] - p.h(), p.c[2] + p.h());
-        let reach = |lines: &[(f64, f64)], c: f64| {
-            let (lo, hi) = (c - p.h(), c + p.h());
-            let slack = 1e-9 * (lo.abs().max(hi.abs()) + p.h());
-            // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
-            // Every line is tested, without branches (a bundle has at most 64 per side): bit k
-            // set where line k meets the extent; the range runs from the first to the last.
-            let mut hits = 0u64;
-            for (k, &(o, d)) in lines.iter().enumerate() {
-                let (a, b) = (o + z0.max(0.0) * d, o + z1.max(0.0) * d);
-                let hit = (a.min(b) <= hi + slack) & (a.max(b) >= lo - slack);
-                hits |= u64::from(hit) << k;
-            }
-            if hits == 0 {
-                return lines.len()..lines.len();
-            }
-            hits.trailing_zeros() as usize..64 - hits.leading_zeros() as usize
-        };
-        (reach(&self.x, p.c[0]), reach(&self.y, p.c[1]))
+        let z = ((p.c[2] - p.h()).max(0.0), (p.c[2] + p.h()).max(0.0));
+        (
+            reach(&self.x, &self.fans[0], p.c[0], p.h(), z),
+            reach(&self.y, &self.fans[1], p.c[1], p.h(), z),
+        )
+    }
+}
+
+/// The lines of `lines` (the same as `fan`, where there is one) whose coordinate lies within
+/// [c − h, c + h], widened against rounding, at some depth of `z`.
+#[inline(always)]
+fn reach(
+    lines: &[(f64, f64)],
+    fan: &Option<Fan>,
+    c: f64,
+    h: f64,
+    z: (f64, f64),
+) -> std::ops::Range<usize> {
+    let (lo, hi) = (c - h, c + h);
+    let slack = 1e-9 * (lo.abs().max(hi.abs()) + h);
+    let (lo, hi) = (lo - slack, hi + slack);
+    if let Some(fan) = fan {
+        return fan.reach(lo, hi, z);
+    }
+    // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
+    let hit = |&(o, d): &(f64, f64)| {
+        let (a, b) = (o + z.0 * d, o + z.1 * d);
+        a.min(b) <= hi && a.max(b) >= lo
+    };
+    match lines.iter().position(hit) {
+        Some(k) => k..lines.len() - lines.iter().rev().position(hit).unwrap_or(0),
+        None => lines.len()..lines.len(),
     }
 }
 
@@ -338,7 +417,7 @@ fn cast_bundle(
         pulp::Arch::new().dispatch(Scatter {
             sums,
             rays: &lanes,
-            footprint: |p: &ViewParticle| lines.footprint(p),
+            footprint: &lines,
             particles: local,
             zs,
             live,
@@ -450,6 +529,9 @@ mod tests {
             let lines = BundleLines::new(&rays, 8);
             let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
             let (cols, rows) = lines.footprint(&p);
+            // The fans' closed form finds what testing line by line does.
+            let by_line = BundleLines { fans: [None, None], ..lines.clone() };
+            prop_assert_eq!((cols.clone(), rows.clone()), by_line.footprint(&p));
             for (r, ray) in rays.iter().enumerate() {
                 if ray.passage(&p).is_some_and(|pass| pass.z1 >= 0.0) {
                     prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),

@@ -166,6 +166,13 @@ impl BundleRays {
     }
 }
 
+/// The columns and rows of a bundle's rays that a particle's support can reach (a superset).
+/// A trait rather than a closure so that it is inlined into [`Scatter`]'s loop, and compiled
+/// with it for the CPU's instruction set.
+pub(crate) trait Footprint {
+    fn footprint(&self, p: &ViewParticle) -> (Range<usize>, Range<usize>);
+}
+
 /// One span's scatter: every particle of `particles`, in order, into `sums` (see
 /// [`SpanSums::scatter`]; `footprint` gives the columns and rows of `rays` a particle can
 /// reach). Run through [`pulp::Arch::dispatch`], which compiles it for the CPU's best
@@ -173,7 +180,7 @@ impl BundleRays {
 pub(crate) struct Scatter<'a, F> {
     pub sums: &'a mut SpanSums,
     pub rays: &'a BundleRays,
-    pub footprint: F,
+    pub footprint: &'a F,
     pub particles: &'a [ViewParticle],
     pub zs: &'a SpanDepths,
     pub live: &'a [bool],
@@ -181,7 +188,7 @@ pub(crate) struct Scatter<'a, F> {
     pub field: FieldKind,
 }
 
-impl<F: Fn(&ViewParticle) -> (Range<usize>, Range<usize>)> pulp::WithSimd for Scatter<'_, F> {
+impl<F: Footprint> pulp::WithSimd for Scatter<'_, F> {
     type Output = ();
 
     #[inline(always)]
@@ -192,7 +199,7 @@ impl<F: Fn(&ViewParticle) -> (Range<usize>, Range<usize>)> pulp::WithSimd for Sc
             return self.with_simd(pulp::Scalar::new());
         }
         for p in self.particles {
-            let reach = (self.footprint)(p);
+            let reach = self.footprint.footprint(p);
             let sums = &mut *self.sums;
             sums.scatter(
                 simd,
