@@ -535,12 +535,14 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
     let dz = grid.params.depth_samples as usize;
     let k0 = cell.z as usize * dz;
     let zs = &depths.z[k0..k0 + dz];
-    // Quantity bounds per depth sample from the particles whose depth range reaches it.
-    let mut qlo = [f64::INFINITY; 64];
-    let mut qhi = [f64::NEG_INFINITY; 64];
+    // Quantity bounds per depth sample from the particles whose depth range reaches it (in
+    // single precision, as particles hold the quantity: their extremes are exact), and bit k
+    // of `any` set for each sample some particle reaches.
+    let mut qlo = [f32::INFINITY; 64];
+    let mut qhi = [f32::NEG_INFINITY; 64];
     let mut sum_lo = [0.0f64; 64];
     let mut sum_hi = [0.0f64; 64];
-    let mut any = [false; 64];
+    let mut any = 0u64;
     // Bit s set: every ray of sub-bundle s is inside some particle's support at sample k.
     let full = parts.all;
     let mut cover = [0u64; 64];
@@ -550,10 +552,13 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
             continue;
         }
         let p = &grid.particles[j as usize];
-        for k in r.clone() {
-            any[k] = true;
-            qlo[k] = qlo[k].min(p.a());
-            qhi[k] = qhi[k].max(p.a());
+        any |= bits(&r);
+        let a = p.a32;
+        for (lo, hi) in qlo[r.clone()].iter_mut().zip(&mut qhi[r.clone()]) {
+            // Not min/max: these compile to branch-free compares (a NaN quantity changes
+            // neither, as f32::min would not).
+            *lo = if a < *lo { a } else { *lo };
+            *hi = if a > *hi { a } else { *hi };
         }
         if params.field != FieldKind::Csph {
             let wmax = params.kernel.eval(0.0, p.h());
@@ -572,7 +577,7 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
     }
     // Bit k set while sample k, which some particle reaches, is not yet covered for every
     // sub-bundle.
-    let mut open = (0..dz).fold(0u64, |m, k| m | (u64::from(any[k]) << k));
+    let mut open = any;
     // Coverage, only at the samples still open. Particles near the bundle's middle ray
     // cover most, so they go first and close samples early; OR-ing the bits in another
     // order gives the same coverage.
@@ -604,11 +609,11 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
     let tf = tfb.transfer_function();
     let mut vb = [ValueBound::EMPTY; 64];
     for k in 0..dz {
-        if !any[k] {
+        if any & (1u64 << k) == 0 {
             continue;
         }
         let (a, b) = match params.field {
-            FieldKind::Csph => (qlo[k], qhi[k]),
+            FieldKind::Csph => (f64::from(qlo[k]), f64::from(qhi[k])),
             _ => (sum_lo[k], sum_hi[k]),
         };
         let r = tfb.range(a, b);
@@ -639,6 +644,12 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
     }
 }
 
+/// Bit k set for each sample k of `r` (not empty, within 0..64).
+#[inline]
+fn bits(r: &std::ops::Range<usize>) -> u64 {
+    (u64::MAX >> (64 - (r.end - r.start))) << r.start
+}
+
 /// Coverage of `p` at the open samples of `r` (Sec. 4.2, see [`Parts`]): bits of the
 /// sub-bundles it covers OR-ed into `cover`; a sample covered for every sub-bundle is closed
 /// in `open`.
@@ -651,8 +662,7 @@ fn cover_samples(
     cover: &mut [u64; 64],
     open: &mut u64,
 ) {
-    let in_range = (u64::MAX >> (64 - (r.end - r.start))) << r.start;
-    let mut todo = *open & in_range;
+    let mut todo = *open & bits(&r);
     while todo != 0 {
         let k = todo.trailing_zeros() as usize;
         todo &= todo - 1;
