@@ -17,8 +17,10 @@
 //!    depth range differs (opaque geometry, a cropping box).
 //! 3. **Second pass.** The pixels not accepted are cast.
 //! 4. **Recheck.** Where a pixel of the second pass misses its own interpolation by more than
+//!    its stencil predicted (an eighth of its largest second difference) plus
 //!    [`SURPRISE_SHARE`] · E_I, the image holds detail the lattice does not see: the accepted
-//!    pixels within [`RECHECK_RADIUS`] are cast in a third pass.
+//!    pixels within [`RECHECK_RADIUS`] are cast in a third pass. (A pixel rejected for a large
+//!    second difference misses by about that much: the lattice saw that detail.)
 //!
 //! The lattice sees only what passes between its pixels' rays: a particle whose projected
 //! support is narrower than its spacing can fall between them, so the refinement is off for a
@@ -54,8 +56,11 @@ pub const MIN_FOOTPRINT_PX: f64 = 5.0;
 /// the hard-edged union of supports vary faster than the lattice can see.
 pub const MAX_SLOPE: f64 = 3.0;
 
-/// How far, as a share of E_I, a cast pixel's value may miss its interpolation before the
-/// accepted pixels around it are cast as well.
+/// How far, as a share of E_I, a cast pixel's value may miss its interpolation beyond what
+/// its stencil predicted before the accepted pixels around it are cast as well. On a
+/// 227k-particle dam break (t = 0.4 s, 1024 × 768, velocity), counting the predicted miss
+/// as a surprise too rechecked 17,248 pixels and left 0.0036 % of the pixels above E_I;
+/// not counting it, 6,738 and 0.012 % (the rule allows 0.05 %).
 pub const SURPRISE_SHARE: f64 = 0.5;
 
 /// The distance, in pixels, around a surprise within which accepted pixels are cast.
@@ -202,6 +207,8 @@ fn second_difference(p: [&[f64; 4]; 4]) -> f64 {
 struct Estimate {
     rgba: [f32; 4],
     z: f32,
+    /// The error the stencil predicts: an eighth of its largest second difference.
+    predicted: f64,
     accept: bool,
 }
 
@@ -274,6 +281,7 @@ fn interpolate(
             0 => (depth / f64::from(near)) as f32,
             _ => f32::INFINITY,
         },
+        predicted: curvature / 8.0,
         accept: !(steep || curved),
     })
 }
@@ -305,13 +313,15 @@ fn estimates(
 }
 
 /// Pixels cast in the second pass whose interpolation missed their cast value by more than
-/// [`SURPRISE_SHARE`] · E_I in some channel: evidence of detail the lattice does not see.
+/// its stencil predicted plus [`SURPRISE_SHARE`] · E_I in some channel: evidence of detail
+/// the lattice does not see. (A pixel rejected for a large second difference was expected to
+/// miss by about as much: the lattice saw that detail.)
 fn surprises(second: &Image, cast: &[bool], est: &[Option<Estimate>], tolerance: f64) -> Vec<bool> {
-    let limit = SURPRISE_SHARE * tolerance;
     (0..cast.len())
         .map(|idx| {
             cast[idx]
                 && est[idx].is_some_and(|e| {
+                    let limit = e.predicted + SURPRISE_SHARE * tolerance;
                     (0..4).any(|c| f64::from((second.rgba[idx][c] - e.rgba[c]).abs()) > limit)
                 })
         })
@@ -542,6 +552,38 @@ mod tests {
             passes.push(cast);
             Ok(out)
         }
+    }
+
+    /// A cast pixel is a surprise when it misses its interpolation by more than its stencil
+    /// predicted plus SURPRISE_SHARE · E_I, in any channel: a pixel rejected for curvature
+    /// that misses by about its prediction is not one.
+    #[test]
+    fn a_surprise_misses_by_more_than_predicted() {
+        let est = |predicted: f64| Estimate {
+            rgba: [0.5; 4],
+            z: 1.0,
+            predicted,
+            accept: false,
+        };
+        let cases = [
+            (0.0, 0.0015, false),
+            (0.0, 0.0025, true),
+            (0.01, 0.0115, false),
+            (0.01, 0.0125, true),
+        ];
+        let mut second = Image::new(cases.len() as u32, 1);
+        let mut ests = Vec::new();
+        for (k, &(predicted, miss, _)) in cases.iter().enumerate() {
+            second.rgba[k] = [0.5, 0.5, 0.5 - miss as f32, 0.5];
+            ests.push(Some(est(predicted)));
+        }
+        let cast = vec![true; cases.len()];
+        let want: Vec<bool> = cases.iter().map(|c| c.2).collect();
+        assert_eq!(surprises(&second, &cast, &ests, E), want);
+        // Pixels not cast, or without an interpolation, are never surprises.
+        ests[1] = None;
+        let got = surprises(&second, &[true, true, true, false], &ests, E);
+        assert_eq!(got, [false, false, false, false]);
     }
 
     /// The passes: the lattice first; then every other pixel that is not accepted; then the
