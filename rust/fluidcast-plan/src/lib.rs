@@ -555,8 +555,7 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
         any |= bits(&r);
         let a = p.a32;
         for (lo, hi) in qlo[r.clone()].iter_mut().zip(&mut qhi[r.clone()]) {
-            // Not min/max: these compile to branch-free compares (a NaN quantity changes
-            // neither, as f32::min would not).
+            // A NaN quantity moves neither bound (as f64::min and max ignored it before).
             *lo = if a < *lo { a } else { *lo };
             *hi = if a > *hi { a } else { *hi };
         }
