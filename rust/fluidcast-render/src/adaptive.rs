@@ -381,8 +381,9 @@ fn cast_bundle(
         .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
     // The rays to cast, packed: a pixel whose depth range is empty is done before it starts
-    // (see RenderParams::depth_range_at) and takes no lane.
-    let cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
+    // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
+    let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
+    cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
     let lanes = BundleRays::new(cast.iter().map(|&r| ((r % width, r / width), rays[r])));
     for span in plan.bundle_spans(b) {
         if cast.iter().all(|&r| comps[r].done) {

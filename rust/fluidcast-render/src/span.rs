@@ -1,10 +1,11 @@
 //! The grid renderer's inner loop: kernel sums of a bundle's rays over one span's samples,
-//! filled particle by particle, [`LANES`] rays of a bundle row side by side.
+//! filled particle by particle, [`LANES`] rays side by side: a 4 × 2 block of the bundle's
+//! pixels ([`block_key`]).
 //!
 //! Every ray of a span samples the same depths (Hochstetter et al. 2016, Alg. 2), so the sums
-//! of all its rays form one block, sample-major: `[sample][row][column]`, the columns of a row
-//! padded to whole lanes. A particle adds its weights to the rows its footprint reaches, a
-//! whole lane group at a time over the samples of its depth extent; the lanes that it does
+//! of all its rays form one block, sample-major: `[sample][slot]`, the rays packed into whole
+//! lane groups. A particle adds its weights to the lane groups its footprint reaches, a
+//! whole group at a time over the samples of its depth extent; the lanes that it does
 //! not reach (outside the footprint, no passage, ray already opaque) add an exact zero. The
 //! sample loop is written in `pulp`'s SIMD operations and compiled for the best instruction
 //! set the CPU has, chosen at run time (AVX2 + FMA on x86-64 where present, else scalar).
@@ -21,8 +22,20 @@ use std::ops::Range;
 use fluidcast_grid::{within, Ray, ViewParticle};
 use fluidcast_sph::{FieldKind, Kernel};
 
-/// Rays handled side by side: one group of a bundle row.
+/// Rays handled side by side: one lane group.
 pub(crate) const LANES: usize = 8;
+
+/// The order in which a bundle's rays fill lane groups: pixel (i, j) of the bundle by 4 × 2
+/// blocks (block rows, then blocks along them, then the block's rows and columns), so that a
+/// full bundle's groups are compact blocks. A group costs its whole width wherever a particle's
+/// footprint meets it, and a footprint that covers only some columns of the bundle meets
+/// half the blocks it would meet as rows of 8: full-rate rendering of a 285k-particle dam
+/// break at 1024 × 768 took 22.6 G instructions instead of 24.2 G (callgrind), the same
+/// image. The lattice of the image-space refinement (every second pixel of every second row)
+/// packs into the same groups in either order.
+pub(crate) fn block_key(i: usize, j: usize) -> (usize, usize, usize, usize) {
+    (j / 2, i / 4, j % 2, i % 4)
+}
 
 /// One lane group: up to [`LANES`] rays of a bundle, their origins, directions and |d|²,
 /// component-wise, the column and row of each in the bundle (`u16::MAX` on padding lanes), and
@@ -143,8 +156,8 @@ impl RayGroup {
 
 /// Some rays of a bundle, packed [`LANES`] to a group in the order given: ray `r` of that
 /// order is in slot `r` (lane `r % LANES` of group `r / LANES`). All of a bundle's rays in
-/// row-major order fill its rows group by group; a subset (the pixels still to cast) packs
-/// densely, so that rays not cast cost no lanes.
+/// [`block_key`] order fill its 4 × 2 blocks group by group; a subset (the pixels still to
+/// cast) packs densely, so that rays not cast cost no lanes.
 #[derive(Debug, Clone)]
 pub(crate) struct BundleRays {
     groups: Vec<RayGroup>,
@@ -505,6 +518,38 @@ mod tests {
     use super::*;
     use fluidcast_view::Camera;
     use proptest::prelude::*;
+
+    /// In [`block_key`] order a full 8 × 8 bundle's rays fill each lane group with a 4 × 2
+    /// block, and the lattice (even columns and rows) packs into the same groups as in
+    /// row-major order.
+    #[test]
+    fn block_order_packs_compact_blocks() {
+        let extent = |g: &[(usize, usize)]| {
+            let (cols, rows) = (g.iter().map(|p| p.0), g.iter().map(|p| p.1));
+            let span = |v: Vec<usize>| v.iter().max().unwrap() - v.iter().min().unwrap() + 1;
+            (span(cols.collect()), span(rows.collect()))
+        };
+        let mut all: Vec<(usize, usize)> =
+            (0..8).flat_map(|j| (0..8).map(move |i| (i, j))).collect();
+        all.sort_by_key(|&(i, j)| block_key(i, j));
+        for g in all.chunks(LANES) {
+            assert_eq!(extent(g), (4, 2), "{g:?}");
+        }
+        let lattice: Vec<(usize, usize)> = (0..8)
+            .step_by(2)
+            .flat_map(|j| (0..8).step_by(2).map(move |i| (i, j)))
+            .collect();
+        let mut blocked = lattice.clone();
+        blocked.sort_by_key(|&(i, j)| block_key(i, j));
+        for (a, b) in lattice.chunks(LANES).zip(blocked.chunks(LANES)) {
+            let sorted = |g: &[(usize, usize)]| {
+                let mut g = g.to_vec();
+                g.sort();
+                g
+            };
+            assert_eq!(sorted(a), sorted(b));
+        }
+    }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
