@@ -604,16 +604,15 @@ mod tests {
             adaptive: fluidcast_plan::PlanParams::default(),
             ..params(w, h)
         };
-        let mut passes = Vec::new();
-        let every = vec![true; 36];
-        let (got, refined) = cast_refined(
-            &prm,
-            &frame(w, h),
-            E,
-            &every,
-            fake_caster(&truth, &mut passes),
-        )
-        .unwrap();
+        // The refinement over `truth` with the bundles `refined` refined: the image, the
+        // counts and the pixels of each pass.
+        let run = |refined: &[bool]| {
+            let mut passes = Vec::new();
+            let caster = fake_caster(&truth, &mut passes);
+            let (got, counts) = cast_refined(&prm, &frame(w, h), E, refined, caster).unwrap();
+            (got, counts, passes)
+        };
+        let (got, refined, passes) = run(&[true; 36]);
         assert_eq!(passes.len(), 3);
         let lattice: Vec<bool> = (0..h)
             .flat_map(|j| (0..w).map(move |i| on_lattice(i, j)))
@@ -649,15 +648,7 @@ mod tests {
 
         // Bundles not refined (every other one here) are cast whole in the first pass.
         let half: Vec<bool> = (0..36).map(|b| b % 2 == 0).collect();
-        let mut passes = Vec::new();
-        let (got, refined) = cast_refined(
-            &prm,
-            &frame(w, h),
-            E,
-            &half,
-            fake_caster(&truth, &mut passes),
-        )
-        .unwrap();
+        let (got, refined, passes) = run(&half);
         for (k, &c) in passes[0].iter().enumerate() {
             let (i, j) = ((k % w as usize) as u32, (k / w as usize) as u32);
             let b = (j / 8 * 6 + i / 8) as usize;
