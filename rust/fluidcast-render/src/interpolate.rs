@@ -134,7 +134,7 @@ pub fn smallest_footprint_px(particles: &Particles, frame: &ViewFrame) -> f64 {
             }
             let r = big_h / frame.pixel_size_at(far);
             let in_image = frame
-                .project(p)
+                .project_view(v)
                 .is_some_and(|(x, y)| x >= -r && x <= w + r && y >= -r && y <= h + r);
             // A support around the eye (centre behind it) is wide on screen, not small.
             if in_image || v.z <= 0.0 {

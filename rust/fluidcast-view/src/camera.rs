@@ -259,7 +259,11 @@ impl ViewFrame {
     /// World point → continuous pixel coordinates (x from the left edge, y from the top edge;
     /// the centre of pixel (i, j) is (i + ½, j + ½)); `None` behind the camera.
     pub fn project(&self, p: DVec3) -> Option<(f64, f64)> {
-        let v = self.to_view(p);
+        self.project_view(self.to_view(p))
+    }
+
+    /// [`ViewFrame::project`] of a point already in view space (see [`ViewFrame::to_view`]).
+    pub fn project_view(&self, v: DVec3) -> Option<(f64, f64)> {
         let (x, y) = match self.parallel {
             Some(s) => (v.x / (s * self.aspect), v.y / s),
             None => {
