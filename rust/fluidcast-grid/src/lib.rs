@@ -40,6 +40,8 @@ pub enum GridError {
     DepthSamples(u32),
     #[error("{0}; use a smaller image or fewer, smaller particles in view")]
     Memory(#[from] fluidcast_mem::MemError),
+    #[error("image size {0}x{1}: the grid holds pixel rectangles in 16 bits, at most {max} pixels a side", max = u16::MAX)]
+    ImageSize(u32, u32),
 }
 
 /// A particle in view space (world units), as the renderers read it.
@@ -215,8 +217,43 @@ pub fn depth_range(zmin: f64, zmax: f64, perspective: bool) -> Option<(f64, f64)
 /// Pixel rectangle `[x0, x1) × [y0, y1)` (rows from the top) that contains every pixel
 /// centre whose ray can pass through the particle's support, or `None` when the support is
 /// off screen or outside `[near, far]`. Conservative: the support sphere's bounding box is
-/// projected at its nearest and farthest depth.
+/// projected at its nearest and farthest depth ([`screen_extent`]), rounded out to whole
+/// pixels.
 pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
+    let [x0, x1, y0, y1] = screen_extent(frame, p, near, far)?;
+    let (w, h) = (frame.width as f64, frame.height as f64);
+    let px0 = x0.floor().max(0.0);
+    let px1 = x1.ceil().min(w);
+    let py0 = y0.floor().max(0.0);
+    let py1 = y1.ceil().min(h);
+    if px0 >= px1 || py0 >= py1 {
+        return None;
+    }
+    Some([px0 as u32, px1 as u32, py0 as u32, py1 as u32])
+}
+
+/// The pixels `[x0, x1) × [y0, y1)` whose centre lies in [`screen_extent`] (widened by a
+/// millionth of a pixel against rounding): those whose ray can pass through the support, a
+/// pixel's width tighter on each side than [`screen_rect`]. `None` where there are none.
+pub fn centre_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
+    const SLACK: f64 = 1e-6;
+    let [x0, x1, y0, y1] = screen_extent(frame, p, near, far)?;
+    let (w, h) = (frame.width as f64, frame.height as f64);
+    // Pixel i's centre is i + ½: the first at or after e − ½ and the last at or before.
+    let first = |e: f64, n: f64| (e - 0.5 - SLACK).ceil().clamp(0.0, n);
+    let end = |e: f64, n: f64| ((e - 0.5 + SLACK).floor() + 1.0).clamp(0.0, n);
+    let (px0, px1, py0, py1) = (first(x0, w), end(x1, w), first(y0, h), end(y1, h));
+    if px0 >= px1 || py0 >= py1 {
+        return None;
+    }
+    Some([px0 as u32, px1 as u32, py0 as u32, py1 as u32])
+}
+
+/// The extent `[x0, x1] × [y0, y1]` in image coordinates (pixel units from the top-left
+/// corner, unbounded) of a particle's support: its bounding box projected at its nearest
+/// and farthest depth; infinite for a perspective view where the support reaches within
+/// half the near depth of the eye. `None` when the support lies outside `[near, far]`.
+pub fn screen_extent(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[f64; 4]> {
     let [x, y, z] = p.c;
     if z + p.h() < near || z - p.h() > far {
         return None;
@@ -252,14 +289,12 @@ pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
         Some(_) => (x - p.h(), x + p.h(), y - p.h(), y + p.h()),
     };
     // NDC → pixel columns/rows (rows from the top).
-    let px0 = ((x0 / sx + 1.0) * 0.5 * w as f64).floor().max(0.0);
-    let px1 = ((x1 / sx + 1.0) * 0.5 * w as f64).ceil().min(w as f64);
-    let py0 = ((1.0 - y1 / sy) * 0.5 * h as f64).floor().max(0.0);
-    let py1 = ((1.0 - y0 / sy) * 0.5 * h as f64).ceil().min(h as f64);
-    if px0 >= px1 || py0 >= py1 {
-        return None;
-    }
-    Some([px0 as u32, px1 as u32, py0 as u32, py1 as u32])
+    Some([
+        (x0 / sx + 1.0) * 0.5 * w as f64,
+        (x1 / sx + 1.0) * 0.5 * w as f64,
+        (1.0 - y1 / sy) * 0.5 * h as f64,
+        (1.0 - y0 / sy) * 0.5 * h as f64,
+    ])
 }
 
 /// A viewing ray through a pixel centre, in view space: the point at view depth `z` is
@@ -535,6 +570,11 @@ pub struct PerspectiveGrid {
     pub bundles_y: u32,
     pub cells_z: u32,
     pub particles: Vec<ViewParticle>,
+    /// Per particle, the pixels whose ray can enter its support, `[x0, x1) × [y0, y1)`
+    /// ([`centre_rect`]; all zero where there are none). The ray caster cuts a bundle's
+    /// columns and rows out of it (integer work) instead of projecting the support onto the
+    /// bundle's rays for every bundle, span and pass.
+    pub rects: Vec<[u16; 4]>,
     /// Particles whose support touches at least one cell.
     pub particles_visible: usize,
     /// Particle indices, grouped by cell.
@@ -569,6 +609,9 @@ impl PerspectiveGrid {
         support_depths: Option<(f64, f64)>,
     ) -> Result<PerspectiveGrid, GridError> {
         params.validate()?;
+        if frame.width > u32::from(u16::MAX) || frame.height > u32::from(u16::MAX) {
+            return Err(GridError::ImageSize(frame.width, frame.height));
+        }
         let mut vp = view_particles(particles, frame);
         let own = vp.range;
         vp.range = sampled_range(frame, support_depths, || own);
@@ -583,6 +626,7 @@ impl PerspectiveGrid {
             bundles_y: by,
             cells_z: 0,
             particles: vp.list,
+            rects: Vec::new(),
             particles_visible: 0,
             refs: Vec::new(),
             cells: Vec::new(),
@@ -594,6 +638,12 @@ impl PerspectiveGrid {
         let dz = params.depth_samples as usize;
         let depths = SampleDepths::new(frame, near, far, sampling_scale, dz)?;
         grid.cells_z = (depths.len() / dz) as u32;
+        grid.rects = grid
+            .particles
+            .par_iter()
+            // Within 0..=width (height), which fit in 16 bits (checked above).
+            .map(|p| centre_rect(frame, p, near, far).map_or([0; 4], |r| r.map(|v| v as u16)))
+            .collect();
 
         // Footprint of each particle: bundle rectangle and cell depth range (inclusive).
         // Computed where needed, twice, rather than stored: 28 bytes a particle.

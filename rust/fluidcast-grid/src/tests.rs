@@ -27,8 +27,9 @@ fn frame(parallel: bool, w: u32, h: u32) -> ViewFrame {
     c.frame(w, h).unwrap()
 }
 
-/// Every ray sample inside a particle's support finds that particle in its cell, and each
-/// cell's merge bits agree with the next cell's references.
+/// Every ray sample inside a particle's support finds that particle in its cell and its
+/// pixel in the particle's rectangle, and each cell's merge bits agree with the next cell's
+/// references.
 #[test]
 fn cells_hold_every_contributing_particle() {
     let p = cloud(80, 3);
@@ -61,6 +62,12 @@ fn cells_hold_every_contributing_particle() {
                                 .find(|c| c.z == cz)
                                 .expect("cell of a contributing sample exists");
                             assert!(g.refs[c.start as usize..c.end as usize].contains(&(q as u32)));
+                            // And the pixel lies in the particle's rectangle.
+                            let r = g.rects[q].map(u32::from);
+                            assert!(
+                                (r[0]..r[1]).contains(&i) && (r[2]..r[3]).contains(&j),
+                                "pixel ({i}, {j}) outside particle {q}'s rectangle {r:?}"
+                            );
                             checked += 1;
                         }
                     }
@@ -257,4 +264,22 @@ fn bundle_of_finds_the_bundle_whose_pixels_hold_it() {
         }
         assert_eq!(seen, w * h);
     }
+}
+
+/// The grid holds pixel rectangles in 16 bits: a wider image is refused with an error, not
+/// wrapped around.
+#[test]
+fn images_wider_than_16_bits_are_refused() {
+    let p = cloud(10, 1);
+    for (w, h) in [(70_000, 2), (2, 70_000)] {
+        let f = frame(false, w, h);
+        let err = PerspectiveGrid::build(&p, &f, GridParams::default(), 1.0).unwrap_err();
+        assert!(
+            matches!(err, GridError::ImageSize(a, b) if (a, b) == (w, h)),
+            "{err}"
+        );
+    }
+    assert!(
+        PerspectiveGrid::build(&p, &frame(false, 65_535, 1), GridParams::default(), 1.0).is_ok()
+    );
 }

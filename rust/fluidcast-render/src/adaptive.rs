@@ -1,7 +1,7 @@
 use std::borrow::Cow;
 use std::time::Instant;
 
-use fluidcast_grid::{PerspectiveGrid, Ray, SampleDepths, ViewParticle};
+use fluidcast_grid::{PerspectiveGrid, Ray, SampleDepths};
 use fluidcast_image::Image;
 use fluidcast_plan::{BundleSummary, FieldParams, PlanParams, SamplingPlan};
 use fluidcast_sph::Particles;
@@ -9,7 +9,7 @@ use fluidcast_view::{Camera, TfLookup, TransferFunction};
 use rayon::prelude::*;
 
 use crate::raycast::Compositor;
-use crate::span::{BundleRays, Footprint, Scatter, SpanDepths, SpanSums, LANES};
+use crate::span::{BundleRays, Reach, Reaching, Scatter, SpanDepths, SpanSums, LANES};
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 /// Neighbour-count ratio below which a particle counts as a surface particle (see
@@ -210,7 +210,7 @@ fn cast_planned(
 struct BundleScratch {
     sums: SpanSums,
     zs: SpanDepths,
-    local: Vec<ViewParticle>,
+    local: Vec<Reaching>,
     live: Vec<bool>,
 }
 
@@ -227,131 +227,24 @@ impl BundleScratch {
     }
 }
 
-/// The bundle's rays as lines `o + z·d` (d.z = 1) per column and per row: column `i` has
-/// x = `x[i].0 + z·x[i].1`, row `j` has y = `y[j].0 + z·y[j].1` (perspective rays start at
-/// the eye, parallel ones are parallel to the view axis).
-#[derive(Clone)]
-struct BundleLines {
-    x: Vec<(f64, f64)>,
-    y: Vec<(f64, f64)>,
-    fans: [Option<Fan>; 2],
-}
-
-/// Lines `o_k + z·d_k`, k = 0..n, whose `o` and `d` are affine in k, as a bundle's columns
-/// (rows) are: pixel centres are evenly spaced in the image plane, so at any depth z the
-/// lines are evenly spaced too, `x_k(z) = a(z) + k·s(z)` with a and s affine in z.
-#[derive(Debug, Clone, Copy)]
-struct Fan {
-    o0: f64,
-    d0: f64,
-    so: f64,
-    sd: f64,
-    n: usize,
-}
-
-impl Fan {
-    /// The fan through the first and last of `lines` (at least 2).
-    fn of(lines: &[(f64, f64)]) -> Option<Fan> {
-        let (&(o0, d0), &(o1, d1)) = (lines.first()?, lines.last()?);
-        let n = lines.len();
-        let k = (n as f64 - 1.0).max(1.0);
-        (n >= 2).then_some(Fan {
-            o0,
-            d0,
-            so: (o1 - o0) / k,
-            sd: (d1 - d0) / k,
-            n,
-        })
-    }
-
-    /// The lines whose coordinate lies in [lo, hi] at some depth of [za, zb] (za ≤ zb, both
-    /// ≥ 0). At one depth they are the k of an interval, `(lo − a)/s ≤ k ≤ (hi − a)/s`; its
-    /// ends are ratios of affine functions of z, monotonic, so the union over [za, zb] (an
-    /// interval, by continuity) runs from the smaller lower end to the larger upper end of
-    /// the two depths. Where s = 0 (the perspective eye, z = 0, where every line passes) an
-    /// end is ±∞ by the sign of s just beyond, or every line where the extent holds the eye.
-    #[inline(always)]
-    fn reach(&self, lo: f64, hi: f64, (za, zb): (f64, f64)) -> std::ops::Range<usize> {
-        let (mut kmin, mut kmax) = (f64::INFINITY, f64::NEG_INFINITY);
-        for z in [za, zb] {
-            let a = self.o0 + z * self.d0;
-            let s = self.so + z * self.sd;
-            let s = if s == 0.0 {
-                0.0f64.copysign(self.sd)
-            } else {
-                s
-            };
-            let (f, g) = ((lo - a) / s, (hi - a) / s);
-            let (f, g) = if s.is_sign_negative() { (g, f) } else { (f, g) };
-            // 0/0: the extent's edge passes through the eye, where every line does.
-            kmin = kmin.min(if f.is_nan() { f64::NEG_INFINITY } else { f });
-            kmax = kmax.max(if g.is_nan() { f64::INFINITY } else { g });
-        }
-        let n = self.n as f64;
-        let (first, end) = (kmin.ceil().max(0.0), (kmax.floor() + 1.0).min(n));
-        match first < end {
-            true => first as usize..end as usize,
-            false => self.n..self.n,
-        }
-    }
-}
-
-impl BundleLines {
-    fn new(rays: &[Ray], width: usize) -> BundleLines {
-        let x: Vec<(f64, f64)> = rays[..width].iter().map(|r| (r.o[0], r.d[0])).collect();
-        let y: Vec<(f64, f64)> = rays
-            .iter()
-            .step_by(width)
-            .map(|r| (r.o[1], r.d[1]))
-            .collect();
-        BundleLines {
-            fans: [Fan::of(&x), Fan::of(&y)],
-            x,
-            y,
-        }
-    }
-}
-
-impl Footprint for BundleLines {
-    /// The columns and rows whose rays can enter particle `p`'s support: those whose x
-    /// (resp. y) lies within the support's extent [c − H, c + H] at some depth inside
-    /// [c.z − H, c.z + H]. Conservative (a superset, widened against rounding); the exact
-    /// test is [`Ray::passage`]. Empty ranges when none can.
-    #[inline(always)]
-    fn footprint(&self, p: &ViewParticle) -> (std::ops::Range<usize>, std::ops::Range<usize>) {
-        let z = ((p.c[2] - p.h()).max(0.0), (p.c[2] + p.h()).max(0.0));
-        (
-            reach(&self.x, &self.fans[0], p.c[0], p.h(), z),
-            reach(&self.y, &self.fans[1], p.c[1], p.h(), z),
-        )
-    }
-}
-
-/// The lines of `lines` (the same as `fan`, where there is one) whose coordinate lies within
-/// [c − h, c + h], widened against rounding, at some depth of `z`.
+/// The columns and rows, relative to the bundle's first pixel `origin`, of the pixels of
+/// `cast` (a box `[x0, x1) × [y0, y1)` of image pixels, the rays a pass casts) inside a
+/// particle's pixel rectangle `rect` ([`PerspectiveGrid::rects`], which holds every pixel
+/// whose ray can enter the support); `None` where they do not meet. Integer work where
+/// projecting the support onto the bundle's rays took eight divisions, per particle, span
+/// and pass; and a pass that casts a few pixels of a bundle drops the particles away from
+/// them before any other work.
 #[inline(always)]
-fn reach(
-    lines: &[(f64, f64)],
-    fan: &Option<Fan>,
-    c: f64,
-    h: f64,
-    z: (f64, f64),
-) -> std::ops::Range<usize> {
-    let (lo, hi) = (c - h, c + h);
-    let slack = 1e-9 * (lo.abs().max(hi.abs()) + h);
-    let (lo, hi) = (lo - slack, hi + slack);
-    if let Some(fan) = fan {
-        return fan.reach(lo, hi, z);
-    }
-    // A line's coordinate is monotonic in z: its extremes over [z0, z1] are at the ends.
-    let hit = |&(o, d): &(f64, f64)| {
-        let (a, b) = (o + z.0 * d, o + z.1 * d);
-        a.min(b) <= hi && a.max(b) >= lo
-    };
-    match lines.iter().position(hit) {
-        Some(k) => k..lines.len() - lines.iter().rev().position(hit).unwrap_or(0),
-        None => lines.len()..lines.len(),
-    }
+fn reaching(rect: [u16; 4], cast: [u32; 4], origin: (u32, u32)) -> Option<Reach> {
+    let r = rect.map(u32::from);
+    let (c0, c1) = (r[0].max(cast[0]), r[1].min(cast[1]));
+    let (r0, r1) = (r[2].max(cast[2]), r[3].min(cast[3]));
+    // Bundles are at most 64 pixels a side (GridParams::validate): offsets fit in 8 bits.
+    let at = |v: u32, o: u32| (v - o) as u8;
+    (c0 < c1 && r0 < r1).then(|| Reach {
+        cols: (at(c0, origin.0), at(c1, origin.0)),
+        rows: (at(r0, origin.1), at(r1, origin.1)),
+    })
 }
 
 /// Ray casts bundle `b` of the plan: per span (Alg. 2: every ray of the bundle samples the
@@ -376,7 +269,6 @@ fn cast_bundle(
         .clone()
         .map(|(i, j)| Ray::through_pixel(&grid.frame, i, j))
         .collect();
-    let lines = BundleLines::new(&rays, width);
     let mut comps: Vec<Compositor> = pixels
         .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
@@ -385,6 +277,13 @@ fn cast_bundle(
     let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
     cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
     let lanes = BundleRays::new(cast.iter().map(|&r| ((r % width, r / width), rays[r])));
+    // The image pixels of the rays cast: a particle's rectangle must meet them.
+    let cast_box = cast
+        .iter()
+        .fold([u32::MAX, 0, u32::MAX, 0], |[a, b, c, d], &r| {
+            let (i, j) = (x0 + (r % width) as u32, y0 + (r / width) as u32);
+            [a.min(i), b.max(i + 1), c.min(j), d.max(j + 1)]
+        });
     for span in plan.bundle_spans(b) {
         if cast.iter().all(|&r| comps[r].done) {
             break;
@@ -411,14 +310,25 @@ fn cast_bundle(
         // The span's n samples and the end of the last one's step.
         zs.set((0..=n).map(|m| depths.z[k0 + m * step]));
         local.clear();
-        local.extend(grid.merged_refs(cells).map(|j| grid.particles[j as usize]));
+        local.extend(grid.merged_refs(cells).filter_map(|j| {
+            // (Every particle has its rectangle; were one missing, the whole bundle.)
+            let rect = grid.rects.get(j as usize).copied();
+            let reach = reaching(
+                rect.unwrap_or([0, u16::MAX, 0, u16::MAX]),
+                cast_box,
+                (x0, y0),
+            )?;
+            Some(Reaching {
+                p: grid.particles[j as usize],
+                reach,
+            })
+        }));
         for (slot, &r) in cast.iter().enumerate() {
             live[slot] = !comps[r].done;
         }
         pulp::Arch::new().dispatch(Scatter {
             sums,
             rays: &lanes,
-            footprint: &lines,
             particles: local,
             zs,
             live,
@@ -495,53 +405,83 @@ pub fn bundle_aovs(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fluidcast_grid::{centre_rect, ViewParticle};
+    use fluidcast_view::ViewFrame;
     use proptest::prelude::*;
 
-    /// The rays of the 8×8 bundle at pixel (x0, y0) of a 64×48 view, perspective or parallel.
-    fn bundle_rays(parallel: bool, x0: u32, y0: u32) -> Vec<Ray> {
+    /// The view (64×48, perspective or parallel) and the rays of its 8×8 bundle at pixel
+    /// (x0, y0).
+    fn bundle_rays(parallel: bool, x0: u32, y0: u32) -> (ViewFrame, Vec<Ray>) {
         let camera = Camera {
             parallel_projection: parallel,
             parallel_scale: 0.6,
             ..Camera::default()
         };
         let frame = camera.frame(64, 48).unwrap();
-        (y0..y0 + 8)
+        let rays = (y0..y0 + 8)
             .flat_map(|j| (x0..x0 + 8).map(move |i| (i, j)))
             .map(|(i, j)| Ray::through_pixel(&frame, i, j))
-            .collect()
+            .collect();
+        (frame, rays)
+    }
+
+    /// The near and far depth of the grid in these tests.
+    const NEAR_FAR: (f64, f64) = (1e-3, 100.0);
+
+    /// What [`cast_bundle`] does: the particle's rectangle as the grid stores it, cut to
+    /// the bundle at (x0, y0) (all of it cast).
+    fn reach_in_bundle(frame: &ViewFrame, p: &ViewParticle, x0: u32, y0: u32) -> Option<Reach> {
+        let (near, far) = NEAR_FAR;
+        let rect = centre_rect(frame, p, near, far).map_or([0; 4], |r| r.map(|v| v as u16));
+        reaching(rect, [x0, x0 + 8, y0, y0 + 8], (x0, y0))
+    }
+
+    /// True when ray `r` (of 8 × 8) lies in `reach`.
+    fn holds(reach: Option<Reach>, r: usize) -> bool {
+        reach.is_some_and(|reach| {
+            let (cols, rows) = (reach.cols, reach.rows);
+            (usize::from(cols.0)..usize::from(cols.1)).contains(&(r % 8))
+                && (usize::from(rows.0)..usize::from(rows.1)).contains(&(r / 8))
+        })
     }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(400))]
-        /// The footprint holds every ray that enters the support (the exact test) at a depth
-        /// in front of the eye, where samples lie, for particles anywhere, the eye inside the
-        /// support included. And it is tight: exactly the columns and rows whose lines meet
-        /// the support's extent ([`lines_meeting`]), up to the rounding slack (a footprint
-        /// grown by a column still renders right, but scatters for nothing).
+        /// A particle's reach in a bundle holds every ray that enters its support beyond the
+        /// near depth, for particles anywhere, the eye inside the support included. And it
+        /// is tight: for a support in front of the eye, exactly the columns and rows whose
+        /// lines meet the support's extent ([`lines_meeting`]), up to the rounding slack (a
+        /// reach grown by a column still renders right, but scatters for nothing).
         #[test]
-        fn footprint_holds_every_ray_that_enters_and_no_more(
+        fn reach_holds_every_ray_that_enters_and_no_more(
             parallel in any::<bool>(),
             bx in 0u32..8,
             by in 0u32..6,
             c in prop::array::uniform3(-1.5f64..1.5),
             h in 0.001f64..0.8,
         ) {
-            let rays = bundle_rays(parallel, 8 * bx, 8 * by);
-            let lines = BundleLines::new(&rays, 8);
+            let (frame, rays) = bundle_rays(parallel, 8 * bx, 8 * by);
             let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
-            let (cols, rows) = lines.footprint(&p);
-            // The fans' closed form finds what testing line by line does.
-            let by_line = BundleLines { fans: [None, None], ..lines.clone() };
-            prop_assert_eq!((cols.clone(), rows.clone()), by_line.footprint(&p));
+            let reach = reach_in_bundle(&frame, &p, 8 * bx, 8 * by);
             for (r, ray) in rays.iter().enumerate() {
-                if ray.passage(&p).is_some_and(|pass| pass.z1 >= 0.0) {
-                    prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
-                        "ray {} enters but lies outside {:?} × {:?}", r, cols, rows);
+                if ray.passage(&p).is_some_and(|pass| pass.z1 >= NEAR_FAR.0) {
+                    prop_assert!(holds(reach, r), "ray {} enters but lies outside {:?}", r, reach);
                 }
             }
-            for (got, l, c) in [(cols, &lines.x, p.c[0]), (rows, &lines.y, p.c[1])] {
-                let (inner, outer) = (lines_meeting(l, c, &p, -1e-6), lines_meeting(l, c, &p, 1e-6));
-                prop_assert!(inner.iter().all(|k| got.contains(k)), "{:?} misses {:?}", got, inner);
+            if c[2] - h <= NEAR_FAR.0 {
+                return Ok(()); // the support reaches around the eye: all of the image
+            }
+            let line = |axis: usize, k: usize| (rays[k].o[axis], rays[k].d[axis]);
+            let xs: Vec<_> = (0..8).map(|k| line(0, k)).collect();
+            let ys: Vec<_> = (0..8).map(|k| line(1, 8 * k)).collect();
+            let (cols, rows) = reach.map_or(((8, 8), (8, 8)), |r| (r.cols, r.rows));
+            for ((lo, hi), l, c) in [(cols, &xs, p.c[0]), (rows, &ys, p.c[1])] {
+                let got = usize::from(lo)..usize::from(hi);
+                let (inner, outer) = (lines_meeting(l, c, &p, -1e-4), lines_meeting(l, c, &p, 1e-4));
+                // Where one axis has no line, the reach is empty: the other says nothing.
+                if reach.is_some() {
+                    prop_assert!(inner.iter().all(|k| got.contains(k)), "{:?} misses {:?}", got, inner);
+                }
                 prop_assert!(got.clone().all(|k| outer.contains(&k)), "{:?} beyond {:?}", got, outer);
             }
         }
@@ -550,9 +490,9 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(400))]
         /// The same at the edge of the support: a particle whose centre lies just inside H
-        /// of a chosen ray (perpendicular offset 0.95–0.9999 H) has that ray in its footprint.
+        /// of a chosen ray (perpendicular offset 0.95–0.9999 H) has that ray in its reach.
         #[test]
-        fn footprint_holds_grazing_rays(
+        fn reach_holds_grazing_rays(
             parallel in any::<bool>(),
             r in 0usize..64,
             z in 0.2f64..2.0,
@@ -560,8 +500,7 @@ mod tests {
             angle in 0.0f64..std::f64::consts::TAU,
             h in 0.001f64..0.5,
         ) {
-            let rays = bundle_rays(parallel, 24, 16);
-            let lines = BundleLines::new(&rays, 8);
+            let (frame, rays) = bundle_rays(parallel, 24, 16);
             let ray = &rays[r];
             // Two unit vectors perpendicular to the ray's direction.
             let d = ray.d.map(|v| v / ray.dlen);
@@ -571,15 +510,14 @@ mod tests {
             let c = [0, 1, 2].map(|k| ray.o[k] + z * ray.d[k] + f * h * (ca * u[k] + sa * w[k]));
             let p = ViewParticle::new(c, h, 1.0, 1.0, 1.0);
             prop_assert!(ray.passage(&p).is_some());
-            let (cols, rows) = lines.footprint(&p);
-            prop_assert!(cols.contains(&(r % 8)) && rows.contains(&(r / 8)),
-                "ray {} grazes but lies outside {:?} × {:?}", r, cols, rows);
+            let reach = reach_in_bundle(&frame, &p, 24, 16);
+            prop_assert!(holds(reach, r), "ray {} grazes but lies outside {:?}", r, reach);
         }
     }
 
     /// The columns (rows) whose line x = o + z·d meets [c − H, c + H] somewhere in the
-    /// particle's depth extent in front of the eye, by solving for the depths where it does
-    /// (not by the footprint's end-point test); `grow` widens H.
+    /// particle's depth extent in front of the eye, by solving for the depths where it does;
+    /// `grow` widens H.
     fn lines_meeting(lines: &[(f64, f64)], c: f64, p: &ViewParticle, grow: f64) -> Vec<usize> {
         let (za, zb) = ((p.c[2] - p.h()).max(0.0), (p.c[2] + p.h()).max(0.0));
         let h = p.h() * (1.0 + grow);
@@ -593,19 +531,27 @@ mod tests {
         (0..lines.len()).filter(|&k| meets(&lines[k])).collect()
     }
 
-    /// A small particle in front of the camera reaches a few of the bundle's rays, not all.
+    /// A small particle in front of the camera reaches a few of the bundle's rays, not all;
+    /// a pass that casts pixels away from it drops it.
     #[test]
-    fn footprint_of_a_small_particle_is_small() {
+    fn reach_of_a_small_particle_is_small() {
         for parallel in [false, true] {
-            let rays = bundle_rays(parallel, 24, 16);
-            let lines = BundleLines::new(&rays, 8);
+            let (frame, rays) = bundle_rays(parallel, 24, 16);
             let centre = rays[3 * 8 + 3].d.map(|d| d * 0.5);
             let o = rays[3 * 8 + 3].o;
             let c = [o[0] + centre[0], o[1] + centre[1], o[2] + centre[2]];
             let p = ViewParticle::new(c, 0.01, 1.0, 1.0, 1.0);
-            let (cols, rows) = lines.footprint(&p);
-            assert!(cols.contains(&3) && rows.contains(&3), "{cols:?} {rows:?}");
-            assert!(cols.len() <= 3 && rows.len() <= 3, "{cols:?} {rows:?}");
+            let reach = reach_in_bundle(&frame, &p, 24, 16).unwrap();
+            assert!(holds(Some(reach), 3 * 8 + 3), "{reach:?}");
+            for (lo, hi) in [reach.cols, reach.rows] {
+                assert!(hi - lo <= 3, "{reach:?}");
+            }
+            let (near, far) = NEAR_FAR;
+            let rect = centre_rect(&frame, &p, near, far)
+                .unwrap()
+                .map(|v| v as u16);
+            assert_eq!(reaching(rect, [30, 32, 16, 24], (24, 16)), None);
+            assert!(reaching(rect, [24, 32, 16, 24], (24, 16)).is_some());
         }
     }
 

@@ -179,29 +179,43 @@ impl BundleRays {
     }
 }
 
-/// The columns and rows of a bundle's rays that a particle's support can reach (a superset).
-/// A trait rather than a closure so that it is inlined into [`Scatter`]'s loop, and compiled
-/// with it for the CPU's instruction set.
-pub(crate) trait Footprint {
-    fn footprint(&self, p: &ViewParticle) -> (Range<usize>, Range<usize>);
+/// The columns `cols.0..cols.1` and rows `rows.0..rows.1` of a bundle's rays (relative to
+/// its first pixel) that a particle's support can reach: a superset of those whose ray
+/// enters it, the exact test being [`Ray::passage`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Reach {
+    pub cols: (u8, u8),
+    pub rows: (u8, u8),
+}
+
+impl Reach {
+    fn ranges(&self) -> (Range<usize>, Range<usize>) {
+        let r = |(a, b): (u8, u8)| usize::from(a)..usize::from(b);
+        (r(self.cols), r(self.rows))
+    }
+}
+
+/// A particle of a span and the rays of the bundle it can reach.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reaching {
+    pub p: ViewParticle,
+    pub reach: Reach,
 }
 
 /// One span's scatter: every particle of `particles`, in order, into `sums` (see
-/// [`SpanSums::scatter`]; `footprint` gives the columns and rows of `rays` a particle can
-/// reach). Run through [`pulp::Arch::dispatch`], which compiles it for the CPU's best
-/// instruction set.
-pub(crate) struct Scatter<'a, F> {
+/// [`SpanSums::scatter`]). Run through [`pulp::Arch::dispatch`], which compiles it for the
+/// CPU's best instruction set.
+pub(crate) struct Scatter<'a> {
     pub sums: &'a mut SpanSums,
     pub rays: &'a BundleRays,
-    pub footprint: &'a F,
-    pub particles: &'a [ViewParticle],
+    pub particles: &'a [Reaching],
     pub zs: &'a SpanDepths,
     pub live: &'a [bool],
     pub kernel: Kernel,
     pub field: FieldKind,
 }
 
-impl<F: Footprint> pulp::WithSimd for Scatter<'_, F> {
+impl pulp::WithSimd for Scatter<'_> {
     type Output = ();
 
     #[inline(always)]
@@ -211,14 +225,13 @@ impl<F: Footprint> pulp::WithSimd for Scatter<'_, F> {
             // features): one lane at a time instead.
             return self.with_simd(pulp::Scalar::new());
         }
-        for p in self.particles {
-            let reach = self.footprint.footprint(p);
+        for r in self.particles {
             let sums = &mut *self.sums;
             sums.scatter(
                 simd,
                 self.rays,
-                p,
-                reach,
+                &r.p,
+                r.reach.ranges(),
                 self.zs,
                 self.live,
                 self.kernel,
