@@ -443,19 +443,29 @@ impl Parts {
         }
         let at = |v: f64| if self.parallel { v } else { v * z };
         let far = |e: [f64; 2], c: f64| (at(e[0]) - c).abs().max((at(e[1]) - c).abs());
-        let fx = self.x.map(|e| far(e, p.c[0]));
-        let fy = self.y.map(|e| far(e, p.c[1]));
-        let (fx, fy) = (&fx[..self.cols], &fy[..self.rows]);
-        let nearest = |f: &[f64]| f.iter().fold(f64::INFINITY, |a, &b| a.min(b));
-        let (mx, my) = (nearest(fx), nearest(fy));
+        // Whole arrays, the columns (rows) beyond the grid infinitely far: loops of fixed
+        // length that the compiler unrolls.
+        let fx: [f64; SIDE] = std::array::from_fn(|u| match u < self.cols {
+            true => far(self.x[u], p.c[0]),
+            false => f64::INFINITY,
+        });
+        let fy: [f64; SIDE] = std::array::from_fn(|v| match v < self.rows {
+            true => far(self.y[v], p.c[1]),
+            false => f64::INFINITY,
+        });
+        let nearest = |f: &[f64; SIDE]| f.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+        let (mx, my) = (nearest(&fx), nearest(&fy));
         if mx * mx + my * my >= lim {
             return 0; // not even the nearest column and row
         }
+        let (fx2, fy2) = (fx.map(|x| x * x), fy.map(|y| y * y));
         let mut bits = 0u64;
-        for (v, y) in fy.iter().enumerate() {
-            for (u, x) in fx.iter().enumerate() {
-                bits |= u64::from(x * x + y * y < lim) << (v * self.cols + u);
-            }
+        for (v, y2) in fy2.iter().enumerate().take(self.rows) {
+            let row = fx2
+                .iter()
+                .enumerate()
+                .fold(0u64, |m, (u, x2)| m | (u64::from(x2 + y2 < lim) << u));
+            bits |= row << (v * self.cols);
         }
         bits
     }
