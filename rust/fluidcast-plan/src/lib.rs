@@ -617,6 +617,9 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
     }
     let tf = tfb.transfer_function();
     let mut vb = [ValueBound::EMPTY; 64];
+    // Neighbouring samples mostly see the same particles, so the same value range: its
+    // colour and extinction bounds are found once.
+    let mut last: Option<((f64, f64), ValueBound)> = None;
     for k in 0..dz {
         if any & (1u64 << k) == 0 {
             continue;
@@ -625,17 +628,28 @@ fn cell_bounds(view: &View, bundle: &Bundle, parts: &Parts, cell: &Cell, stop: f
             FieldKind::Csph => (f64::from(qlo[k]), f64::from(qhi[k])),
             _ => (sum_lo[k], sum_hi[k]),
         };
-        let r = tfb.range(a, b);
+        let bound = match last {
+            Some((range, bound)) if range == (a, b) => bound,
+            _ => {
+                let r = tfb.range(a, b);
+                let bound = ValueBound {
+                    empty: false,
+                    may_be_empty: false,
+                    rgb_lo: r.rgb_lo,
+                    rgb_hi: r.rgb_hi,
+                    k_lo: tf.extinction(r.alpha_lo),
+                    k_hi: tf.extinction(r.alpha_hi),
+                };
+                last = Some(((a, b), bound));
+                bound
+            }
+        };
         // A step that ends past `stop` may be cut short or skipped for some ray: "nothing"
         // is then one of its values, as for a coverage gap (the rest of the ray is empty).
         let stopped = depths.z[k0 + k + 1] > stop;
         vb[k] = ValueBound {
-            empty: false,
             may_be_empty: cover[k] != full || stopped,
-            rgb_lo: r.rgb_lo,
-            rgb_hi: r.rgb_hi,
-            k_lo: tf.extinction(r.alpha_lo),
-            k_hi: tf.extinction(r.alpha_hi),
+            ..bound
         };
     }
     let mut ds = [[0.0; 2]; 64];
