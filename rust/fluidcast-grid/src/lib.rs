@@ -249,6 +249,13 @@ pub fn centre_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
     Some([px0 as u32, px1 as u32, py0 as u32, py1 as u32])
 }
 
+/// [`centre_rect`] as [`PerspectiveGrid::rects`] holds it: 16 bits a coordinate (the grid
+/// refuses frames wider or taller than that), all zero where there are no pixels.
+pub fn stored_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> [u16; 4] {
+    centre_rect(frame, p, near, far)
+        .map_or([0; 4], |r| r.map(|v| v.min(u32::from(u16::MAX)) as u16))
+}
+
 /// The extent `[x0, x1] × [y0, y1]` in image coordinates (pixel units from the top-left
 /// corner, unbounded) of a particle's support: its bounding box projected at its nearest
 /// and farthest depth; infinite for a perspective view where the support reaches within
@@ -571,7 +578,7 @@ pub struct PerspectiveGrid {
     pub cells_z: u32,
     pub particles: Vec<ViewParticle>,
     /// Per particle, the pixels whose ray can enter its support, `[x0, x1) × [y0, y1)`
-    /// ([`centre_rect`]; all zero where there are none). The ray caster cuts a bundle's
+    /// ([`stored_rect`]; all zero where there are none). The ray caster cuts a bundle's
     /// columns and rows out of it (integer work) instead of projecting the support onto the
     /// bundle's rays for every bundle, span and pass.
     pub rects: Vec<[u16; 4]>,
@@ -641,8 +648,7 @@ impl PerspectiveGrid {
         grid.rects = grid
             .particles
             .par_iter()
-            // Within 0..=width (height), which fit in 16 bits (checked above).
-            .map(|p| centre_rect(frame, p, near, far).map_or([0; 4], |r| r.map(|v| v as u16)))
+            .map(|p| stored_rect(frame, p, near, far))
             .collect();
 
         // Footprint of each particle: bundle rectangle and cell depth range (inclusive).

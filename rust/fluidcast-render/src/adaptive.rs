@@ -405,7 +405,7 @@ pub fn bundle_aovs(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fluidcast_grid::{centre_rect, ViewParticle};
+    use fluidcast_grid::{stored_rect, ViewParticle};
     use fluidcast_view::ViewFrame;
     use proptest::prelude::*;
 
@@ -432,7 +432,7 @@ mod tests {
     /// the bundle at (x0, y0) (all of it cast).
     fn reach_in_bundle(frame: &ViewFrame, p: &ViewParticle, x0: u32, y0: u32) -> Option<Reach> {
         let (near, far) = NEAR_FAR;
-        let rect = centre_rect(frame, p, near, far).map_or([0; 4], |r| r.map(|v| v as u16));
+        let rect = stored_rect(frame, p, near, far);
         reaching(rect, [x0, x0 + 8, y0, y0 + 8], (x0, y0))
     }
 
@@ -547,9 +547,7 @@ mod tests {
                 assert!(hi - lo <= 3, "{reach:?}");
             }
             let (near, far) = NEAR_FAR;
-            let rect = centre_rect(&frame, &p, near, far)
-                .unwrap()
-                .map(|v| v as u16);
+            let rect = stored_rect(&frame, &p, near, far);
             assert_eq!(reaching(rect, [30, 32, 16, 24], (24, 16)), None);
             assert!(reaching(rect, [24, 32, 16, 24], (24, 16)).is_some());
         }
