@@ -149,12 +149,12 @@ pub fn smallest_footprint_px(particles: &Particles, frame: &ViewFrame) -> f64 {
 /// `params` with every pixel not in `cast` given an empty depth range, so that a ray caster
 /// casts exactly the pixels of `cast` (row-major, one per pixel).
 pub fn pass_params(params: &RenderParams, cast: &[bool]) -> RenderParams {
-    let (w, h) = (params.width, params.height);
-    let limits: Vec<f32> = (0..h)
-        .flat_map(|j| (0..w).map(move |i| (i, j)))
-        .zip(cast)
-        .map(|((i, j), &c)| match c {
-            true => params.depth_limit_at(i, j) as f32,
+    let w = params.width as usize;
+    let limits: Vec<f32> = cast
+        .par_iter()
+        .enumerate()
+        .map(|(k, &c)| match c {
+            true => params.depth_limit_at((k % w) as u32, (k / w) as u32) as f32,
             false => f32::NEG_INFINITY,
         })
         .collect();
@@ -318,6 +318,7 @@ fn estimates(
 /// miss by about as much: the lattice saw that detail.)
 fn surprises(second: &Image, cast: &[bool], est: &[Option<Estimate>], tolerance: f64) -> Vec<bool> {
     (0..cast.len())
+        .into_par_iter()
         .map(|idx| {
             cast[idx]
                 && est[idx].is_some_and(|e| {
@@ -361,8 +362,12 @@ pub fn cast_refined<E>(
         let b = fluidcast_grid::bundle_of(w, params.grid.bundle, i, j);
         refined.get(b).copied().unwrap_or(false)
     };
-    let lattice: Vec<bool> = (0..h)
-        .flat_map(|j| (0..w).map(move |i| on_lattice(i, j) || !in_refined(i, j)))
+    let lattice: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|k| {
+            let (i, j) = ((k % w as usize) as u32, (k / w as usize) as u32);
+            on_lattice(i, j) || !in_refined(i, j)
+        })
         .collect();
     let mut stages = Vec::with_capacity(4);
     let mut t = Instant::now();
@@ -373,8 +378,14 @@ pub fn cast_refined<E>(
     let mut image = cast(&pass_params(params, &lattice))?;
     lap("lattice");
     let est = estimates(&image, &lattice, params, frame, tolerance);
-    let accepted: Vec<bool> = est.iter().map(|e| e.is_some_and(|e| e.accept)).collect();
-    let rest: Vec<bool> = (0..n).map(|k| !lattice[k] && !accepted[k]).collect();
+    let accepted: Vec<bool> = est
+        .par_iter()
+        .map(|e| e.is_some_and(|e| e.accept))
+        .collect();
+    let rest: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|k| !lattice[k] && !accepted[k])
+        .collect();
     lap("estimate");
     let second = cast(&pass_params(params, &rest))?;
     lap("second");
@@ -385,18 +396,24 @@ pub fn cast_refined<E>(
         false => None,
     };
     lap("recheck");
-    for k in 0..n {
-        let from = match (rest[k], recheck[k], &third, est[k]) {
-            (true, _, _, _) => &second,
-            (_, true, Some(t), _) => t,
-            (_, _, _, Some(e)) if accepted[k] => {
-                (image.rgba[k], image.depth[k]) = (e.rgba, e.z);
-                continue;
-            }
-            _ => continue,
-        };
-        (image.rgba[k], image.depth[k]) = (from.rgba[k], from.depth[k]);
-    }
+    let third = third.as_ref();
+    image
+        .rgba
+        .par_iter_mut()
+        .zip(image.depth.par_iter_mut())
+        .enumerate()
+        .for_each(|(k, px)| {
+            let from = match (rest[k], recheck[k], third, est[k]) {
+                (true, _, _, _) => &second,
+                (_, true, Some(t), _) => t,
+                (_, _, _, Some(e)) if accepted[k] => {
+                    (*px.0, *px.1) = (e.rgba, e.z);
+                    return;
+                }
+                _ => return,
+            };
+            (*px.0, *px.1) = (from.rgba[k], from.depth[k]);
+        });
     let count = |m: &[bool]| m.iter().filter(|&&c| c).count() as u64;
     let refined = Refined {
         lattice: count(&lattice),
