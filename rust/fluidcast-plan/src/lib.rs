@@ -566,7 +566,8 @@ fn cell_range((lo, hi): (u32, u32), k0: usize, dz: usize) -> std::ops::Range<usi
 
 /// The value bounds of one cell's samples (see [`CellSamples`]). `parts` are the bundle's
 /// sub-bundles for the coverage test; `stop` the nearest depth where opaque geometry stops a
-/// ray of the bundle.
+/// ray of the bundle; `scratch` holds the cell's reaching particles for the coverage test
+/// (those that reach the bundle's middle ray, then the others).
 #[inline(always)]
 fn cell_bounds(
     view: &View,
@@ -602,15 +603,13 @@ fn cell_bounds(
         }
         let p = &grid.particles[j as usize];
         // (cell_range lies within the cell's D_z <= 64 samples.)
-        let reacher = Reacher {
-            j,
-            samples: bits(&r),
-        };
+        let samples = bits(&r);
+        any |= samples;
+        let reacher = Reacher { j, samples };
         match covers_middle(p, (mx, my), bundle.parallel) {
             true => reaching.push(reacher),
             false => others.push(reacher),
         }
-        any |= bits(&r);
         let a = p.a32;
         for (lo, hi) in qlo[r.clone()].iter_mut().zip(&mut qhi[r.clone()]) {
             // A NaN quantity moves neither bound (as f64::min and max ignored it before).
@@ -634,14 +633,14 @@ fn cell_bounds(
     }
     // Central particles first.
     reaching.append(others);
-    let cover = Coverage {
+    let coverage = Coverage {
         bundle,
         parts,
         particles: &grid.particles,
         reaching,
         zs,
     };
-    let (cover, open) = cover.of(any);
+    let (cover, open) = coverage.of(any);
     let full = parts.all;
     let tf = tfb.transfer_function();
     let mut vb = [ValueBound::EMPTY; 64];
