@@ -565,6 +565,50 @@ fn chunk_count(particles: usize, bundles: usize) -> usize {
     want.min(fit).clamp(1, particles.max(1))
 }
 
+/// Working memory of [`sort_bundle_pairs`], kept per thread across bundles.
+#[derive(Default)]
+struct SortScratch {
+    /// Per (cell, merge bit) slot: first the count, then the next place to write.
+    next: Vec<u32>,
+    sorted: Vec<u64>,
+}
+
+/// Sorts one bundle's keys `(cell << 33) | (merge bit << 32) | particle` (as `build_within`
+/// lays them out) into ascending order. The keys arrive in particle order, and a particle
+/// has one key per cell, so a stable counting sort by the upper half (cell and merge bit)
+/// puts them in the order a full sort does, in a few passes where `sort_unstable` took
+/// about 0.55 G instructions for the 227k-particle dam break at 1024 × 768 (about a
+/// quarter of the grid's build). Where the bundle's cells span far more depths than it
+/// holds keys (a few particles far apart in depth), counting would cost more than sorting.
+fn sort_bundle_pairs(keys: &mut [u64], scratch: &mut SortScratch) {
+    let Some(lo) = keys.iter().map(|&k| k >> 32).min() else {
+        return;
+    };
+    let hi = keys.iter().map(|&k| k >> 32).max().unwrap_or(lo);
+    let slots = (hi - lo + 1) as usize;
+    if slots > 2 * keys.len() + 64 || !keys.windows(2).all(|w| (w[0] as u32) <= (w[1] as u32)) {
+        keys.sort_unstable();
+        return;
+    }
+    let SortScratch { next, sorted } = scratch;
+    next.clear();
+    next.resize(slots + 1, 0);
+    for &k in keys.iter() {
+        next[((k >> 32) - lo) as usize + 1] += 1;
+    }
+    for s in 1..=slots {
+        next[s] += next[s - 1];
+    }
+    sorted.clear();
+    sorted.resize(keys.len(), 0);
+    for &k in keys.iter() {
+        let at = &mut next[((k >> 32) - lo) as usize];
+        sorted[*at as usize] = k;
+        *at += 1;
+    }
+    keys.copy_from_slice(sorted);
+}
+
 /// The sparse perspective grid of one view.
 #[derive(Debug, Clone)]
 pub struct PerspectiveGrid {
@@ -759,8 +803,8 @@ impl PerspectiveGrid {
         let per_bundle: Vec<Vec<Cell>> = slices
             .into_par_iter()
             .enumerate()
-            .map(|(b, s)| {
-                s.sort_unstable();
+            .map_init(SortScratch::default, |scratch, (b, s)| {
+                sort_bundle_pairs(s, scratch);
                 let base = offsets[b] as u32;
                 let mut cells: Vec<Cell> = Vec::new();
                 for (i, &k) in s.iter().enumerate() {

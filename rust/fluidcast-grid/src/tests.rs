@@ -283,3 +283,45 @@ fn images_wider_than_16_bits_are_refused() {
         PerspectiveGrid::build(&p, &frame(false, 65_535, 1), GridParams::default(), 1.0).is_ok()
     );
 }
+
+/// The counting sort of a bundle's keys equals a full sort: keys in particle order with
+/// cells over a narrow and a wide depth range (the latter sorted), and keys out of particle
+/// order (which the counting sort must not take).
+#[test]
+fn bundle_pairs_sort_as_a_full_sort_does() {
+    let mut x = 12345u32;
+    let mut rnd = |n: u32| {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        x % n
+    };
+    let mut scratch = SortScratch::default();
+    for (len, depth, shuffle) in [
+        (0, 4, false),
+        (1, 4, false),
+        (500, 3, false),
+        (500, 40, false),
+        (40, 100_000, false),
+        (500, 40, true),
+    ] {
+        let mut keys = Vec::new();
+        let mut j = 0u64;
+        while keys.len() < len {
+            j += u64::from(rnd(3));
+            let z0 = u64::from(rnd(depth));
+            let n = 1 + u64::from(rnd(4));
+            for z in z0..z0 + n {
+                keys.push((z << 33) | (u64::from(z + 1 < z0 + n) << 32) | j);
+            }
+            j += 1;
+        }
+        if shuffle {
+            keys.reverse();
+        }
+        let mut want = keys.clone();
+        want.sort_unstable();
+        sort_bundle_pairs(&mut keys, &mut scratch);
+        assert_eq!(keys, want, "{len} keys over {depth} cells");
+    }
+}
