@@ -265,10 +265,6 @@ fn cast_bundle(
     let [x0, x1, y0, y1] = grid.bundle(b).pixels;
     let width = (x1 - x0) as usize;
     let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
-    let rays: Vec<Ray> = pixels
-        .clone()
-        .map(|(i, j)| Ray::through_pixel(&grid.frame, i, j))
-        .collect();
     let mut comps: Vec<Compositor> = pixels
         .map(|(i, j)| Compositor::for_pixel(params, i, j))
         .collect();
@@ -276,7 +272,23 @@ fn cast_bundle(
     // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
     let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
     cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
-    let lanes = BundleRays::new(cast.iter().map(|&r| ((r % width, r / width), rays[r])));
+    // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's pixels
+    // forms a quarter of its rays).
+    let rays: Vec<Ray> = cast
+        .iter()
+        .map(|&r| {
+            Ray::through_pixel(
+                &grid.frame,
+                x0 + (r % width) as u32,
+                y0 + (r / width) as u32,
+            )
+        })
+        .collect();
+    let lanes = BundleRays::new(
+        cast.iter()
+            .zip(&rays)
+            .map(|(&r, &ray)| ((r % width, r / width), ray)),
+    );
     // The image pixels of the rays cast: a particle's rectangle must meet them.
     let cast_box = cast
         .iter()
@@ -336,7 +348,7 @@ fn cast_bundle(
             field: params.field,
         });
         for (slot, &r) in cast.iter().enumerate() {
-            let (ray, c) = (&rays[r], &mut comps[r]);
+            let (ray, c) = (&rays[slot], &mut comps[r]);
             for m in sums.touched(slot) {
                 if c.done {
                     break;
