@@ -581,10 +581,12 @@ struct SortScratch {
 /// render). Where the bundle's cells span far more depths than it holds keys (a few
 /// particles far apart in depth), counting would cost more than sorting.
 fn sort_bundle_pairs(keys: &mut [u64], scratch: &mut SortScratch) {
-    let Some(lo) = keys.iter().map(|&k| k >> 32).min() else {
+    if keys.is_empty() {
         return;
-    };
-    let hi = keys.iter().map(|&k| k >> 32).max().unwrap_or(lo);
+    }
+    let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
+        (lo.min(k >> 32), hi.max(k >> 32))
+    });
     let slots = (hi - lo + 1) as usize;
     if slots > 2 * keys.len() + 64 || !keys.windows(2).all(|w| (w[0] as u32) <= (w[1] as u32)) {
         keys.sort_unstable();

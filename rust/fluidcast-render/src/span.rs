@@ -369,8 +369,8 @@ impl SpanSums {
     /// Widens the touched ranges of the lanes `near` reaches to the samples `ks`. Without a
     /// branch per lane: which lanes a particle reaches is data that a branch predicts
     /// poorly: a branch here missed 15 M times on a 227k-particle dam break at 1024 × 768 at
-    /// full rate (callgrind), and the bench's full-rate render took 1.55 s without it where
-    /// it took about 2.0 s with it.
+    /// full rate (callgrind), and the bench's full-rate render took 1.54–1.64 s in runs just
+    /// after it went, 1.96–2.14 s just before (not alternating, so partly the machine).
     #[inline(always)]
     fn touch(&mut self, slot: usize, near: &Near, ks: &Range<usize>) {
         for (tc, &m) in self.touched[slot..][..LANES].iter_mut().zip(&near.mask) {
