@@ -38,6 +38,7 @@
 //!   level), where the paper takes the widest bound; they differ only where a finer level's
 //!   bound is wider.
 
+mod extremes;
 mod interval;
 mod tfbounds;
 
@@ -585,8 +586,7 @@ fn cell_bounds(
     // Quantity bounds per depth sample from the particles whose depth range reaches it (in
     // single precision, as particles hold the quantity: their extremes are exact), and bit k
     // of `any` set for each sample some particle reaches.
-    let mut qlo = [f32::INFINITY; 64];
-    let mut qhi = [f32::NEG_INFINITY; 64];
+    let mut extremes = extremes::RangeExtremes::new(dz);
     let mut sum_lo = [0.0f64; 64];
     let mut sum_hi = [0.0f64; 64];
     let mut any = 0u64;
@@ -611,12 +611,8 @@ fn cell_bounds(
             true => reaching.push(reacher),
             false => others.push(reacher),
         }
-        let a = p.a32;
-        for (lo, hi) in qlo[r.clone()].iter_mut().zip(&mut qhi[r.clone()]) {
-            // A NaN quantity moves neither bound (as f64::min and max ignored it before).
-            *lo = if a < *lo { a } else { *lo };
-            *hi = if a > *hi { a } else { *hi };
-        }
+        // A NaN quantity moves neither bound (as f64::min and max ignored it before).
+        extremes.add(r.start, r.end, p.a32);
         if params.field != FieldKind::Csph {
             let wmax = params.kernel.eval(0.0, p.h());
             let (slo, shi) = match params.field {
@@ -632,6 +628,7 @@ fn cell_bounds(
             }
         }
     }
+    let (qlo, qhi) = extremes.per_sample();
     // Central particles first.
     reaching.append(others);
     let coverage = Coverage {
