@@ -159,17 +159,18 @@ impl Gpu {
         match refine {
             Some(e) => {
                 let mut samples = 0;
-                let mut cast = |p: &RenderParams| {
+                // A pass reads back a whole image: its pixels go into the refined one.
+                let mut cast = |p: &RenderParams, into: &mut Image| {
                     let mut pass = Image::new(p.width, p.height);
                     self.raycast(&casting, p, timer, stats, &mut pass)?;
+                    interpolate::keep_cast_pixels(p, &pass, into);
                     samples += stats.samples;
-                    Ok::<_, GpuError>(pass)
+                    Ok::<_, GpuError>(())
                 };
                 let bundles = interpolate::refined_bundles(&summaries);
-                let (refined, counts) =
-                    interpolate::cast_refined(params, &frame, e, &bundles, &mut cast)?;
-                (image, stats.samples, stats.interpolated) =
-                    (refined, samples, counts.interpolated);
+                let counts =
+                    interpolate::cast_refined(params, &frame, e, &bundles, &mut image, &mut cast)?;
+                (stats.samples, stats.interpolated) = (samples, counts.interpolated);
                 stats.stages.extend(counts.stages);
             }
             None => self.raycast(&casting, params, timer, stats, &mut image)?,

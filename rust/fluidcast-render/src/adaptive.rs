@@ -26,8 +26,9 @@ pub struct AdaptiveRender {
     pub plan: SamplingPlan,
 }
 
-/// One bundle's output: bundle index, (premultiplied RGBA, depth) per pixel, samples taken.
-type BundleResult = (usize, Vec<([f32; 4], f32)>, u64);
+/// One bundle's output: bundle index, its pixels cast (row-major index in the bundle,
+/// premultiplied RGBA, depth), samples taken.
+type BundleResult = (usize, Vec<(usize, [f32; 4], f32)>, u64);
 
 /// The surface flags a plan gets: those given, else, when the plan uses the surface rule
 /// ([`PlanParams::uses_surface_cells`]), computed with [`SURFACE_THRESHOLD`]; `None` otherwise.
@@ -130,22 +131,27 @@ pub fn render_adaptive(
 
     let t2 = Instant::now();
     let lookup = TfLookup::new(tf);
-    let mut cast = |p: &RenderParams| {
-        let (image, samples) = cast_planned(&grid, &plan, &lookup, p);
-        stats.samples += samples;
-        Ok::<_, RenderError>(image)
+    let mut cast = |p: &RenderParams, image: &mut Image| {
+        stats.samples += cast_planned(&grid, &plan, &lookup, p, image);
+        Ok::<_, RenderError>(())
     };
-    let mut image = match params.adaptive.tolerance {
+    let mut image = Image::new(params.width, params.height);
+    match params.adaptive.tolerance {
         Some(e) if crate::interpolate::applies(particles, &grid.frame, params) => {
             let bundles = crate::interpolate::refined_bundles(&plan.summaries);
-            let (image, refined) =
-                crate::interpolate::cast_refined(params, &grid.frame, e, &bundles, &mut cast)?;
+            let refined = crate::interpolate::cast_refined(
+                params,
+                &grid.frame,
+                e,
+                &bundles,
+                &mut image,
+                &mut cast,
+            )?;
             stats.interpolated = refined.interpolated;
             stats.stages.extend(refined.stages);
-            image
         }
-        _ => cast(params)?,
-    };
+        _ => cast(params, &mut image)?,
+    }
     stats.stages.push(("raycast", ms(t2)));
     image.aovs = plan_aovs(&grid, &plan, image.width, image.height);
     stats.stages.push(("total", ms(t0)));
@@ -157,20 +163,21 @@ pub fn render_adaptive(
     })
 }
 
-/// The ray casting stage: the image of `grid` cast with `plan` (the pixels whose depth range
-/// is not empty), and the samples composited.
+/// The ray casting stage: casts the pixels of `grid` whose depth range is not empty with
+/// `plan` into `image` (the others keep what they hold, so that the passes of the
+/// image-space refinement fill one image), and returns the samples composited.
 fn cast_planned(
     grid: &PerspectiveGrid,
     plan: &SamplingPlan,
     lookup: &TfLookup,
     params: &RenderParams,
-) -> (Image, u64) {
-    let mut image = Image::new(params.width, params.height);
+    image: &mut Image,
+) -> u64 {
     let Some(depths) = &grid.depths else {
-        return (image, 0);
+        return 0;
     };
     let dz = grid.params.depth_samples as usize;
-    // A bundle with no cells, or whose pixels all have empty depth ranges, casts nothing.
+    // A bundle whose pixels all have empty depth ranges casts nothing.
     let casts = |b: usize| {
         let [x0, x1, y0, y1] = grid.bundle(b).pixels;
         (y0..y1).any(|j| {
@@ -182,7 +189,7 @@ fn cast_planned(
     };
     let results: Vec<BundleResult> = (0..grid.bundle_count())
         .into_par_iter()
-        .filter(|&b| !grid.bundle_cells(b).is_empty() && casts(b))
+        .filter(|&b| casts(b))
         .map_init(
             || BundleScratch::new(grid.params.bundle as usize, dz),
             |scratch, b| cast_bundle(grid, plan, depths, lookup, params, b, scratch),
@@ -191,18 +198,15 @@ fn cast_planned(
     let mut samples = 0;
     for (b, px, n) in results {
         samples += n;
-        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-        let mut k = 0;
-        for j in y0..y1 {
-            for i in x0..x1 {
-                let idx = image.index(i, j);
-                image.rgba[idx] = px[k].0;
-                image.depth[idx] = px[k].1;
-                k += 1;
-            }
+        let [x0, x1, y0, _] = grid.bundle(b).pixels;
+        let width = (x1 - x0) as usize;
+        for (r, rgba, depth) in px {
+            let idx = image.index(x0 + (r % width) as u32, y0 + (r / width) as u32);
+            image.rgba[idx] = rgba;
+            image.depth[idx] = depth;
         }
     }
-    (image, samples)
+    samples
 }
 
 /// Per-thread working memory of [`cast_bundle`]: the span's kernel sums and particles, and
@@ -272,6 +276,10 @@ fn cast_bundle(
     // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
     let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
     cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
+    if plan.bundle_spans(b).is_empty() {
+        // No cells: the rays pass through empty space.
+        return (b, cast_pixels(&cast, &comps), 0);
+    }
     // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's pixels
     // forms a quarter of its rays).
     let rays: Vec<Ray> = cast
@@ -367,7 +375,17 @@ fn cast_bundle(
         }
     }
     let samples = comps.iter().map(|c| c.samples).sum();
-    (b, comps.iter().map(Compositor::pixel).collect(), samples)
+    (b, cast_pixels(&cast, &comps), samples)
+}
+
+/// The pixels `cast` (indices into a bundle's pixels) as [`BundleResult`] lists them.
+fn cast_pixels(cast: &[usize], comps: &[Compositor]) -> Vec<(usize, [f32; 4], f32)> {
+    cast.iter()
+        .map(|&r| {
+            let (rgba, depth) = comps[r].pixel();
+            (r, rgba, depth)
+        })
+        .collect()
 }
 
 /// The plan's per-pixel diagnostics (`error_bound`, `level`, `superpixel`, each from the
@@ -567,9 +585,9 @@ mod tests {
 
     /// A pass of the ray casting stage casts exactly the pixels whose depth range is not
     /// empty, each exactly as a pass over every pixel does (same bits: packing a ray into
-    /// another lane changes nothing it sums), and leaves the others transparent at infinite
-    /// depth. Random masks on a cloud of particles, relaxed and full-rate plans, both
-    /// projections, an image whose edge cuts bundles.
+    /// another lane changes nothing it sums), and leaves the others as the image held them.
+    /// Random masks on a cloud of particles, relaxed and full-rate plans, both projections,
+    /// an image whose edge cuts bundles.
     #[test]
     fn a_pass_casts_exactly_its_pixels() {
         // Supports of 2–5 pixels' radius: footprints smaller than a bundle.
@@ -595,16 +613,22 @@ mod tests {
                 ..Default::default()
             };
             let planned = plan_adaptive(&p, None, &camera, &tf, &params).unwrap();
-            let (full, _) = cast_planned(&planned.grid, &planned.plan, &lookup, &params);
+            let mut full = Image::new(params.width, params.height);
+            cast_planned(&planned.grid, &planned.plan, &lookup, &params, &mut full);
             assert!(full.rgba.iter().filter(|c| c[3] > 0.1).count() > 5000);
+            // What the image held before the pass: a pixel it does not cast keeps it.
+            let before = ([0.25, -1.0, 7.0, 0.5], -3.0f32);
             for share in [0.1f32, 0.5, 0.9] {
                 let mask: Vec<bool> = full.rgba.iter().map(|_| rnd() < share).collect();
                 let pass = crate::interpolate::pass_params(&params, &mask);
-                let (got, _) = cast_planned(&planned.grid, &planned.plan, &lookup, &pass);
+                let mut got = Image::new(params.width, params.height);
+                got.rgba.fill(before.0);
+                got.depth.fill(before.1);
+                cast_planned(&planned.grid, &planned.plan, &lookup, &pass, &mut got);
                 for (k, &m) in mask.iter().enumerate() {
                     let want = match m {
                         true => (full.rgba[k], full.depth[k]),
-                        false => ([0.0; 4], f32::INFINITY),
+                        false => before,
                     };
                     assert_eq!((got.rgba[k], got.depth[k]), want, "pixel {k}, cast {m}");
                 }

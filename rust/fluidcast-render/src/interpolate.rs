@@ -286,45 +286,47 @@ fn interpolate(
     })
 }
 
-/// The interpolation from the lattice pixels of `first` of every pixel the first pass did not
-/// cast (`cast`; row-major, `None` where there is none).
+/// The pixels the first pass did not cast (`cast`; row-major), each with its interpolation
+/// from the lattice pixels of `first` (`None` where there is none), in pixel order: only the
+/// pixels between lattice pixels of refined bundles, where one estimate per pixel of the
+/// image took 40 bytes a pixel (31 MB at 1024 × 768, written and paged in on every view).
 fn estimates(
     first: &Image,
     cast: &[bool],
     params: &RenderParams,
     frame: &ViewFrame,
     tolerance: f64,
-) -> Vec<Option<Estimate>> {
+) -> Vec<(usize, Option<Estimate>)> {
     let w = first.width as usize;
-    // Straight into one vector: rows collected apart and joined copied the estimates (40
-    // bytes a pixel) once more.
     cast.par_iter()
         .enumerate()
-        .map(|(k, &c)| match c {
-            true => None,
-            false => {
-                let (i, j) = ((k % w) as u32, (k / w) as u32);
-                interpolate(first, params, frame, tolerance, (i, j))
-            }
+        .filter(|(_, &c)| !c)
+        .map(|(k, _)| {
+            let (i, j) = ((k % w) as u32, (k / w) as u32);
+            (k, interpolate(first, params, frame, tolerance, (i, j)))
         })
         .collect()
 }
 
-/// Pixels cast in the second pass whose interpolation missed their cast value by more than
-/// its stencil predicted plus [`SURPRISE_SHARE`] · E_I in some channel: evidence of detail
-/// the lattice does not see. (A pixel rejected for a large second difference was expected to
-/// miss by about as much: the lattice saw that detail.)
-fn surprises(second: &Image, cast: &[bool], est: &[Option<Estimate>], tolerance: f64) -> Vec<bool> {
-    (0..cast.len())
-        .into_par_iter()
-        .map(|idx| {
-            cast[idx]
-                && est[idx].is_some_and(|e| {
-                    let limit = e.predicted + SURPRISE_SHARE * tolerance;
-                    (0..4).any(|c| f64::from((second.rgba[idx][c] - e.rgba[c]).abs()) > limit)
-                })
-        })
-        .collect()
+/// Pixels cast in the second pass (`cast`) whose interpolation (`est`) missed their cast
+/// value in `image` by more than its stencil predicted plus [`SURPRISE_SHARE`] · E_I in some
+/// channel: evidence of detail the lattice does not see. (A pixel rejected for a large
+/// second difference was expected to miss by about as much: the lattice saw that detail.)
+fn surprises(
+    image: &Image,
+    cast: &[bool],
+    est: &[(usize, Option<Estimate>)],
+    tolerance: f64,
+) -> Vec<bool> {
+    let mut surprise = vec![false; cast.len()];
+    for &(idx, e) in est {
+        surprise[idx] = cast[idx]
+            && e.is_some_and(|e| {
+                let limit = e.predicted + SURPRISE_SHARE * tolerance;
+                (0..4).any(|c| f64::from((image.rgba[idx][c] - e.rgba[c]).abs()) > limit)
+            });
+    }
+    surprise
 }
 
 /// The accepted pixels within [`RECHECK_RADIUS`] (Chebyshev distance) of a surprise.
@@ -343,16 +345,35 @@ fn near_surprises(surprise: &[bool], accepted: &[bool], w: u32, h: u32) -> Vec<b
     out
 }
 
-/// Casts a view in up to three passes (see the module): `cast` is the ray casting stage for
-/// the given parameters (its image holds the pixels whose depth range is not empty),
-/// `tolerance` is E_I. Returns the image and what was cast and interpolated.
+/// Copies the pixels of `from` that `params` casts (those whose depth range is not empty)
+/// into `to`: for a ray casting stage that fills a whole image per pass (the GPU's), what
+/// [`cast_refined`] asks of a pass.
+pub fn keep_cast_pixels(params: &RenderParams, from: &Image, to: &mut Image) {
+    let w = params.width as usize;
+    to.rgba
+        .par_iter_mut()
+        .zip(to.depth.par_iter_mut())
+        .enumerate()
+        .for_each(|(k, (rgba, depth))| {
+            let (near, far) = params.depth_range_at((k % w) as u32, (k / w) as u32);
+            if near < far {
+                (*rgba, *depth) = (from.rgba[k], from.depth[k]);
+            }
+        });
+}
+
+/// Casts a view in up to three passes (see the module) into `image`: `cast` is the ray
+/// casting stage for the given parameters, which must write exactly the pixels whose depth
+/// range is not empty and leave the others as they are (the passes fill one image);
+/// `tolerance` is E_I. Returns what was cast and interpolated.
 pub fn cast_refined<E>(
     params: &RenderParams,
     frame: &ViewFrame,
     tolerance: f64,
     refined: &[bool],
-    mut cast: impl FnMut(&RenderParams) -> Result<Image, E>,
-) -> Result<(Image, Refined), E> {
+    image: &mut Image,
+    mut cast: impl FnMut(&RenderParams, &mut Image) -> Result<(), E>,
+) -> Result<Refined, E> {
     let (w, h) = (params.width, params.height);
     let n = w as usize * h as usize;
     // The first pass: the lattice, and every pixel of a bundle not refined.
@@ -373,54 +394,40 @@ pub fn cast_refined<E>(
         stages.push((name, crate::ms(t)));
         t = Instant::now();
     };
-    let mut image = cast(&pass_params(params, &lattice))?;
+    cast(&pass_params(params, &lattice), image)?;
     lap("lattice");
-    let est = estimates(&image, &lattice, params, frame, tolerance);
-    let accepted: Vec<bool> = est
-        .par_iter()
-        .map(|e| e.is_some_and(|e| e.accept))
-        .collect();
+    let est = estimates(image, &lattice, params, frame, tolerance);
+    let mut accepted = vec![false; n];
+    for &(idx, e) in &est {
+        accepted[idx] = e.is_some_and(|e| e.accept);
+    }
     let rest: Vec<bool> = (0..n)
         .into_par_iter()
         .map(|k| !lattice[k] && !accepted[k])
         .collect();
     lap("estimate");
-    let second = cast(&pass_params(params, &rest))?;
+    // The second and third passes fill pixels that no pass has cast yet.
+    cast(&pass_params(params, &rest), image)?;
     lap("second");
-    let surprise = surprises(&second, &rest, &est, tolerance);
+    let surprise = surprises(image, &rest, &est, tolerance);
     let recheck = near_surprises(&surprise, &accepted, w, h);
-    let third = match recheck.iter().any(|&c| c) {
-        true => Some(cast(&pass_params(params, &recheck))?),
-        false => None,
-    };
+    if recheck.iter().any(|&c| c) {
+        cast(&pass_params(params, &recheck), image)?;
+    }
     lap("recheck");
-    let third = third.as_ref();
-    image
-        .rgba
-        .par_iter_mut()
-        .zip(image.depth.par_iter_mut())
-        .enumerate()
-        .for_each(|(k, px)| {
-            let from = match (rest[k], recheck[k], third, est[k]) {
-                (true, _, _, _) => &second,
-                (_, true, Some(t), _) => t,
-                (_, _, _, Some(e)) if accepted[k] => {
-                    (*px.0, *px.1) = (e.rgba, e.z);
-                    return;
-                }
-                _ => return,
-            };
-            (*px.0, *px.1) = (from.rgba[k], from.depth[k]);
-        });
+    for &(idx, e) in &est {
+        if let Some(e) = e.filter(|e| e.accept && !recheck[idx]) {
+            (image.rgba[idx], image.depth[idx]) = (e.rgba, e.z);
+        }
+    }
     let count = |m: &[bool]| m.iter().filter(|&&c| c).count() as u64;
-    let refined = Refined {
+    Ok(Refined {
         lattice: count(&lattice),
         cast: count(&rest) + count(&recheck),
         rechecked: count(&recheck),
         interpolated: count(&accepted) - count(&recheck),
         stages,
-    };
-    Ok((image, refined))
+    })
 }
 
 #[cfg(test)]
@@ -545,27 +552,50 @@ mod tests {
         assert!(interpolate(&flat_im, &limited, &fr, E, (15, 20)).is_some());
     }
 
-    /// A fake ray caster over an image function: returns it for the pixels whose depth range
-    /// is not empty, records them per pass.
+    /// What the image holds before any pass: no pass leaves it anywhere.
+    const UNSET: ([f32; 4], f32) = ([-1.0; 4], -1.0);
+
+    /// A fake ray caster over an image function: writes it for the pixels whose depth range
+    /// is not empty, records them per pass, and panics on a pixel that a pass cast before.
     fn fake_caster<'a>(
         truth: &'a Image,
         passes: &'a mut Vec<Vec<bool>>,
-    ) -> impl FnMut(&RenderParams) -> Result<Image, ()> + 'a {
-        move |p: &RenderParams| {
-            let mut out = Image::new(p.width, p.height);
+    ) -> impl FnMut(&RenderParams, &mut Image) -> Result<(), ()> + 'a {
+        move |p: &RenderParams, out: &mut Image| {
             let mut cast = vec![false; out.rgba.len()];
             for j in 0..p.height {
                 for i in 0..p.width {
                     let (near, far) = p.depth_range_at(i, j);
                     let k = out.index(i, j);
                     if near < far {
+                        assert_eq!((out.rgba[k], out.depth[k]), UNSET, "({i}, {j}) cast twice");
                         (out.rgba[k], out.depth[k], cast[k]) =
                             (truth.rgba[k], truth.depth[k], true);
                     }
                 }
             }
             passes.push(cast);
-            Ok(out)
+            Ok(())
+        }
+    }
+
+    /// A whole-image pass (the GPU's) gives the refined image exactly the pixels it casts.
+    #[test]
+    fn keep_cast_pixels_copies_exactly_the_pixels_cast() {
+        let (w, h) = (13, 7);
+        let from = image(w, h, |i, j| f64::from(i + 13 * j) / 100.0, |_, _| 2.0);
+        let mask: Vec<bool> = (0..w * h).map(|k| k % 3 == 1).collect();
+        let mut to = Image::new(w, h);
+        to.rgba.fill(UNSET.0);
+        to.depth.fill(UNSET.1);
+        keep_cast_pixels(&pass_params(&params(w, h), &mask), &from, &mut to);
+        for (k, &m) in mask.iter().enumerate() {
+            let want = if m {
+                (from.rgba[k], from.depth[k])
+            } else {
+                UNSET
+            };
+            assert_eq!((to.rgba[k], to.depth[k]), want, "pixel {k}");
         }
     }
 
@@ -590,13 +620,13 @@ mod tests {
         let mut ests = Vec::new();
         for (k, &(predicted, miss, _)) in cases.iter().enumerate() {
             second.rgba[k] = [0.5, 0.5, 0.5 - miss as f32, 0.5];
-            ests.push(Some(est(predicted)));
+            ests.push((k, Some(est(predicted))));
         }
         let cast = vec![true; cases.len()];
         let want: Vec<bool> = cases.iter().map(|c| c.2).collect();
         assert_eq!(surprises(&second, &cast, &ests, E), want);
         // Pixels not cast, or without an interpolation, are never surprises.
-        ests[1] = None;
+        ests[1].1 = None;
         let got = surprises(&second, &[true, true, true, false], &ests, E);
         assert_eq!(got, [false, false, false, false]);
     }
@@ -624,7 +654,14 @@ mod tests {
         let run = |refined: &[bool]| {
             let mut passes = Vec::new();
             let caster = fake_caster(&truth, &mut passes);
-            let (got, counts) = cast_refined(&prm, &frame(w, h), E, refined, caster).unwrap();
+            let mut got = Image::new(w, h);
+            got.rgba.fill(UNSET.0);
+            got.depth.fill(UNSET.1);
+            let counts = cast_refined(&prm, &frame(w, h), E, refined, &mut got, caster).unwrap();
+            // Every pixel was cast or interpolated.
+            for k in 0..got.rgba.len() {
+                assert_ne!((got.rgba[k], got.depth[k]), UNSET, "pixel {k} left unset");
+            }
             (got, counts, passes)
         };
         let (got, refined, passes) = run(&[true; 36]);
