@@ -275,11 +275,11 @@ fn cast_bundle(
     // The rays to cast, packed: a pixel whose depth range is empty is done before it starts
     // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
     let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
-    cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
     if plan.bundle_spans(b).is_empty() {
         // No cells: the rays pass through empty space.
         return (b, cast_pixels(&cast, &comps), 0);
     }
+    cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
     // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's pixels
     // forms a quarter of its rays).
     let rays: Vec<Ray> = cast
