@@ -164,8 +164,9 @@ pub fn render_adaptive(
 }
 
 /// The ray casting stage: casts the pixels of `grid` whose depth range is not empty with
-/// `plan` into `image` (the others keep what they hold, so that the passes of the
-/// image-space refinement fill one image), and returns the samples composited.
+/// `plan` into `image`, and returns the samples composited. The other pixels keep what they
+/// hold, so that the passes of the image-space refinement fill one image, and so do the
+/// pixels of bundles without cells (their rays meet no particle): `image` starts empty.
 fn cast_planned(
     grid: &PerspectiveGrid,
     plan: &SamplingPlan,
@@ -177,7 +178,8 @@ fn cast_planned(
         return 0;
     };
     let dz = grid.params.depth_samples as usize;
-    // A bundle whose pixels all have empty depth ranges casts nothing.
+    // A bundle with no cells, or whose pixels all have empty depth ranges, casts nothing:
+    // its rays pass through empty space, which the image holds before any pass.
     let casts = |b: usize| {
         let [x0, x1, y0, y1] = grid.bundle(b).pixels;
         (y0..y1).any(|j| {
@@ -189,7 +191,7 @@ fn cast_planned(
     };
     let results: Vec<BundleResult> = (0..grid.bundle_count())
         .into_par_iter()
-        .filter(|&b| casts(b))
+        .filter(|&b| !grid.bundle_cells(b).is_empty() && casts(b))
         .map_init(
             || BundleScratch::new(grid.params.bundle as usize, dz),
             |scratch, b| cast_bundle(grid, plan, depths, lookup, params, b, scratch),
@@ -275,10 +277,6 @@ fn cast_bundle(
     // The rays to cast, packed: a pixel whose depth range is empty is done before it starts
     // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
     let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
-    if plan.bundle_spans(b).is_empty() {
-        // No cells: the rays pass through empty space.
-        return (b, cast_pixels(&cast, &comps), 0);
-    }
     cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
     // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's pixels
     // forms a quarter of its rays).
@@ -375,17 +373,11 @@ fn cast_bundle(
         }
     }
     let samples = comps.iter().map(|c| c.samples).sum();
-    (b, cast_pixels(&cast, &comps), samples)
-}
-
-/// The pixels `cast` (indices into a bundle's pixels) as [`BundleResult`] lists them.
-fn cast_pixels(cast: &[usize], comps: &[Compositor]) -> Vec<(usize, [f32; 4], f32)> {
-    cast.iter()
-        .map(|&r| {
-            let (rgba, depth) = comps[r].pixel();
-            (r, rgba, depth)
-        })
-        .collect()
+    let pixels = cast.iter().map(|&r| {
+        let (rgba, depth) = comps[r].pixel();
+        (r, rgba, depth)
+    });
+    (b, pixels.collect(), samples)
 }
 
 /// The plan's per-pixel diagnostics (`error_bound`, `level`, `superpixel`, each from the
@@ -585,9 +577,10 @@ mod tests {
 
     /// A pass of the ray casting stage casts exactly the pixels whose depth range is not
     /// empty, each exactly as a pass over every pixel does (same bits: packing a ray into
-    /// another lane changes nothing it sums), and leaves the others as the image held them.
-    /// Random masks on a cloud of particles, relaxed and full-rate plans, both projections,
-    /// an image whose edge cuts bundles.
+    /// another lane changes nothing it sums), and leaves the others as the image held them,
+    /// as it does the pixels of bundles without cells (empty in a fresh image). Random masks
+    /// on a cloud of particles, relaxed and full-rate plans, both projections, an image whose
+    /// edge cuts bundles.
     #[test]
     fn a_pass_casts_exactly_its_pixels() {
         // Supports of 2–5 pixels' radius: footprints smaller than a bundle.
@@ -626,7 +619,10 @@ mod tests {
                 got.depth.fill(before.1);
                 cast_planned(&planned.grid, &planned.plan, &lookup, &pass, &mut got);
                 for (k, &m) in mask.iter().enumerate() {
-                    let want = match m {
+                    let w = params.width;
+                    let (i, j) = ((k % w as usize) as u32, (k / w as usize) as u32);
+                    let b = fluidcast_grid::bundle_of(w, params.grid.bundle, i, j);
+                    let want = match m && !planned.grid.bundle_cells(b).is_empty() {
                         true => (full.rgba[k], full.depth[k]),
                         false => before,
                     };

@@ -362,9 +362,10 @@ pub fn keep_cast_pixels(params: &RenderParams, from: &Image, to: &mut Image) {
         });
 }
 
-/// Casts a view in up to three passes (see the module) into `image`: `cast` is the ray
-/// casting stage for the given parameters, which must write exactly the pixels whose depth
-/// range is not empty and leave the others as they are (the passes fill one image);
+/// Casts a view in up to three passes (see the module) into `image`, empty at the start:
+/// `cast` is the ray casting stage for the given parameters, which writes the pixels whose
+/// depth range is not empty (it may skip those whose rays meet no particle, which `image`
+/// already holds) and leaves the others as they are, so that the passes fill one image;
 /// `tolerance` is E_I. Returns what was cast and interpolated.
 pub fn cast_refined<E>(
     params: &RenderParams,
