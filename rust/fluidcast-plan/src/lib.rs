@@ -505,9 +505,10 @@ impl Parts {
 /// reaches may still be empty for some ray (`gappy`, a coverage gap).
 struct CellSamples {
     /// Per sample (D_z of them): its value bound, its step length along the bundle's
-    /// shortest and longest ray (world units), and that step's bound at full rate. Only the cell's own samples, where fixed
-    /// arrays of the largest D_z took 5.6 KB a cell, copied on every move (about 6 M first
-    /// level cache write misses on a 227k-particle dam break at 1024 × 768).
+    /// shortest and longest ray (world units), and that step's bound at full rate. Only the
+    /// cell's own samples, where fixed arrays of the largest D_z took 5.6 KB a cell, copied
+    /// on every move (about 6 M first level cache write misses on a 227k-particle dam break
+    /// at 1024 × 768).
     steps: Vec<(ValueBound, [f64; 2], Bound)>,
     gappy: bool,
 }
