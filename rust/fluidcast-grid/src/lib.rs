@@ -499,7 +499,7 @@ impl Bundle {
     pub fn covered_by(&self, p: &ViewParticle, z: f64) -> bool {
         let [x0, x1, y0, y1] = self.rect_at(z);
         let dz = z - p.c[2];
-        let lim = (p.h() * p.h() - dz * dz) * (1.0 - 1e-9);
+        let lim = (p.h() * p.h() - dz * dz) * COVER_MARGIN;
         if lim <= 0.0 {
             return false;
         }
@@ -508,6 +508,11 @@ impl Bundle {
         fx * fx + fy * fy < lim
     }
 }
+
+/// The share of a particle's squared disc radius (at a depth) within which a ray counts as
+/// covered ([`Bundle::covered_by`], and the sampling plan's coverage test): a relative margin
+/// of 1e-9, so that rounding never claims a covered ray that is not.
+pub const COVER_MARGIN: f64 = 1.0 - 1e-9;
 
 /// A non-empty cell: its depth index and its references into [`PerspectiveGrid::refs`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

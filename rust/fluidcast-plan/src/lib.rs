@@ -42,7 +42,7 @@ mod extremes;
 mod interval;
 mod tfbounds;
 
-use fluidcast_grid::{Bundle, Cell, PerspectiveGrid, ViewParticle};
+use fluidcast_grid::{Bundle, Cell, PerspectiveGrid, ViewParticle, COVER_MARGIN};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::TransferFunction;
 use rayon::prelude::*;
@@ -730,14 +730,14 @@ fn far(e: [f64; 2], c: f64) -> f64 {
 }
 
 /// The squared radius of the disc of a particle centred at depth `cz` with support radius `h`
-/// in the plane of `at`, less the relative margin of [`Bundle::covered_by`], or −∞ where the
+/// in the plane of `at`, less the relative margin [`COVER_MARGIN`], or −∞ where the
 /// particle does not reach the sample (`reaches`) or its disc is too small to cover any part.
 #[inline(always)]
 fn disc_limit(at: &PartsAt, (cz, h): (f64, f64), reaches: bool) -> f64 {
     let dz = at.z - cz;
     let lim = h * h - dz * dz;
     match reaches && lim > at.wide {
-        true => lim * (1.0 - 1e-9),
+        true => lim * COVER_MARGIN,
         false => f64::NEG_INFINITY,
     }
 }
