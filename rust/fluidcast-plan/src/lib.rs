@@ -763,17 +763,23 @@ fn disc_cover(at: &PartsAt, (cx, cy): (f64, f64), lim: f64, want: u64, all: u64)
     }
 }
 
+/// Whether the disc of squared radius `lim` around `(cx, cy)` covers part `s` of `at`.
+#[inline(always)]
+fn disc_covers(at: &PartsAt, (cx, cy): (f64, f64), lim: f64, s: usize) -> bool {
+    let (fx, fy) = (far(at.x[s % at.cols], cx), far(at.y[s / at.cols], cy));
+    fx * fx + fy * fy < lim
+}
+
 /// The parts of `want` covered by the disc of squared radius `lim` around `(cx, cy)` at
 /// `at`, one by one.
 #[inline(always)]
-fn disc_few(at: &PartsAt, (cx, cy): (f64, f64), lim: f64, want: u64) -> u64 {
+fn disc_few(at: &PartsAt, c: (f64, f64), lim: f64, want: u64) -> u64 {
     let mut bits = 0u64;
     let mut todo = want;
     while todo != 0 {
         let s = todo.trailing_zeros() as usize;
         todo &= todo - 1;
-        let (fx, fy) = (far(at.x[s % at.cols], cx), far(at.y[s / at.cols], cy));
-        bits |= u64::from(fx * fx + fy * fy < lim) << s;
+        bits |= u64::from(disc_covers(at, c, lim, s)) << s;
     }
     bits
 }
@@ -836,15 +842,12 @@ impl LaneChunk {
     }
 
     /// Whether some particle of the chunk that reaches sample `k` covers part `s` at `at`:
-    /// bit `s` of [`disc_cover`] alone, by the same arithmetic.
+    /// bit `s` of [`disc_cover`] alone ([`disc_covers`] in every lane, without a branch).
     #[inline(always)]
     fn covers_part(&self, at: &PartsAt, k: usize, s: usize) -> bool {
-        let (u, v) = (s % at.cols, s / at.cols);
         let lim = self.limits(at, k);
-        let (x, y) = (at.x[u], at.y[v]);
         (0..LANE_WIDTH).fold(false, |hit, l| {
-            let (fx, fy) = (far(x, self.cx[l]), far(y, self.cy[l]));
-            hit | (fx * fx + fy * fy < lim[l])
+            hit | disc_covers(at, (self.cx[l], self.cy[l]), lim[l], s)
         })
     }
 }
