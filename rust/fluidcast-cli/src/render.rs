@@ -341,6 +341,7 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
             "merged": p.merged_cells,
         });
         v["particle_refs_sampled"] = json!(p.refs_sampled);
+        v["bundles_not_analysed"] = json!(p.unanalysed_bundles);
     }
     v
 }

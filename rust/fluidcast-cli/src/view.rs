@@ -98,6 +98,10 @@ pub struct SamplingArgs {
     /// relaxed mode.
     #[arg(long)]
     pub no_interpolation: bool,
+    /// Analyse every bundle: no probe of an eighth of them first, which plans the rest at
+    /// full rate where adapting would not pay.
+    #[arg(long)]
+    pub no_probe: bool,
     /// Do not force cells with surface particles to full rate.
     #[arg(long)]
     pub no_surface_cells: bool,
@@ -168,6 +172,7 @@ impl SamplingArgs {
             superpixels: !self.no_superpixels,
             surface_cells: !self.no_surface_cells,
             interpolate: !self.no_interpolation,
+            probe: !self.no_probe,
         };
         if self.strict {
             adaptive = adaptive.strict();

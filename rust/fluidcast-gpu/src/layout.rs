@@ -145,7 +145,10 @@ pub(crate) struct PlanCounters {
     pub(crate) surface_cells: u32,
     pub(crate) merged_cells: u32,
     pub(crate) refs_sampled: u32,
-    pub(crate) pad: [u32; 5],
+    /// The probe bundles' cast work at full rate and as planned, each a u64 as (low, high)
+    /// words (`fluidcast_plan::SamplingPlan::build`'s probe).
+    pub(crate) probe_work: [u32; 4],
+    pub(crate) unanalysed_bundles: u32,
 }
 
 impl PlanCounters {
@@ -157,6 +160,7 @@ impl PlanCounters {
             surface_cells: self.surface_cells as u64,
             merged_cells: self.merged_cells as u64,
             refs_sampled: self.refs_sampled as u64,
+            unanalysed_bundles: self.unanalysed_bundles as u64,
         }
     }
 }
@@ -178,7 +182,12 @@ fn wgsl_name(prefix: &str, name: &str) -> String {
 /// Constants the Rust side owns, prepended to every shader: the kernel and field codes and
 /// the transfer-function size limit.
 pub(crate) fn wgsl_prelude() -> String {
+    use fluidcast_plan::{PROBE_ROW_SHIFT, PROBE_SAVING_DEN, PROBE_SAVING_NUM, PROBE_STRIDE};
     let mut s = format!("const MAX_TF_POINTS: u32 = {MAX_TF_POINTS}u;\n");
+    s += &format!("const PROBE_STRIDE: u32 = {PROBE_STRIDE}u;\n");
+    s += &format!("const PROBE_ROW_SHIFT: u32 = {PROBE_ROW_SHIFT}u;\n");
+    s += &format!("const PROBE_SAVING_NUM: u32 = {PROBE_SAVING_NUM}u;\n");
+    s += &format!("const PROBE_SAVING_DEN: u32 = {PROBE_SAVING_DEN}u;\n");
     for k in Kernel::ALL {
         s += &format!(
             "const {}: u32 = {}u;\n",

@@ -1,7 +1,9 @@
 //! The sampling plan on the GPU (plan.wgsl, Sec. 4–6.2), mirroring
 //! `fluidcast_plan::SamplingPlan::build`: the error analysis per cell (`analyse`, skipped at
 //! full rate) and the greedy choice of levels and super-pixels with cell merging per bundle
-//! (`greedy`), which writes the spans the ray caster reads.
+//! (`greedy`), which writes the spans the ray caster reads. With the probe, both run twice:
+//! for the probe's bundles, then for the others, which the shaders analyse only where the
+//! probe's work sums (atomics in `plan_stats`) say that it pays.
 
 use bytemuck::Zeroable;
 use fluidcast_plan::BundleSummary;
@@ -76,10 +78,19 @@ impl Gpu {
         self.bundle_ranges(&mut pass, ctx, grid)?;
         drop(pass);
         let mut pass = ctx.timer.pass(&mut enc, "gpu_adapt");
-        if params.adaptive.tolerance.is_some() {
-            self.analyse(&mut pass, ctx, grid, &plan, [&surface, &stops], &a)?;
+        // The probe's bundles first, then the others (`SamplingPlan::build`): phase 1 and 2
+        // of plan.wgsl; phase 0 plans every bundle at once.
+        let phases: &[u32] = match params.adaptive.tolerance {
+            Some(_) if params.adaptive.probe => &[1, 2],
+            _ => &[0],
+        };
+        for &p in phases {
+            let phase = self.small_uniform([p, 0, 0, 0]);
+            if params.adaptive.tolerance.is_some() {
+                self.analyse(&mut pass, ctx, grid, &plan, [&surface, &stops, &phase], &a)?;
+            }
+            self.greedy(&mut pass, ctx, grid, &plan, &a, &phase)?;
         }
-        self.greedy(&mut pass, ctx, grid, &plan, &a)?;
         drop(pass);
         self.queue.submit([enc.finish()]);
         Ok(plan)
@@ -91,10 +102,12 @@ impl Gpu {
         ctx: &FrameCtx,
         grid: &Grid,
         plan: &Plan,
-        [surface, stops]: [&wgpu::Buffer; 2],
+        [surface, stops, phase]: [&wgpu::Buffer; 3],
         a: &Analysis,
     ) -> Result<(), GpuError> {
         let binds = [
+            ("phase", phase),
+            ("plan_stats", &plan.counters),
             ("stops", stops),
             ("P", &ctx.frame_buf),
             ("tf", &plan.tf),
@@ -117,9 +130,11 @@ impl Gpu {
         grid: &Grid,
         plan: &Plan,
         a: &Analysis,
+        phase: &wgpu::Buffer,
     ) -> Result<(), GpuError> {
         let front = self.buffer("front bounds", 32 * grid.cells_n as u64, RW, None);
         let binds = [
+            ("phase", phase),
             ("P", &ctx.frame_buf),
             ("cells", &grid.cells),
             ("bounds", &a.bounds),

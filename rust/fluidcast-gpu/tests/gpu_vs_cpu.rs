@@ -130,8 +130,11 @@ fn gpu_matches_cpu_where_the_plan_adapts() {
         let mut cam = orbit(&p, azimuth, 3.0);
         cam.zoom(1.2);
         cam.parallel_projection = parallel;
+        // Every bundle analysed: on this small scene the probe would find that too few
+        // relaxed cells adapt to pay (the probe has tests of its own in stages.rs).
         let relaxed = PlanParams {
             tolerance: Some(e),
+            probe: false,
             ..Default::default()
         };
         for (name, adaptive) in [("relaxed", relaxed), ("strict", relaxed.strict())] {

@@ -171,6 +171,9 @@ fn params(size: (u32, u32), adaptive: PlanParams) -> RenderParams {
 #[test]
 fn gpu_grid_and_plan_match_the_cpu_mirror() {
     let Some(g) = gpu() else { return };
+    // Probed plans where the probe paid and where it did not (then both leave the same
+    // bundles unanalysed: the decision is exact integer arithmetic on both).
+    let mut probed = [0, 0];
     for s in scenes() {
         let coarse = PlanParams {
             tolerance: Some(0.02),
@@ -223,8 +226,14 @@ fn gpu_grid_and_plan_match_the_cpu_mirror() {
                 "{} {mode}: levels agree on {same} of {n} cells",
                 s.name
             );
+            assert_eq!(gs.unanalysed_bundles, cs.unanalysed_bundles, "{}", s.name);
+            if adaptive.tolerance.is_some() && adaptive.probe {
+                probed[usize::from(cs.unanalysed_bundles > 0)] += 1;
+            }
         }
     }
+    eprintln!("probed plans that paid, that did not: {probed:?}");
+    assert!(probed[0] > 0 && probed[1] > 0, "{probed:?}");
 }
 
 #[test]

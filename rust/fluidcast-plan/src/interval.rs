@@ -16,6 +16,13 @@ impl Bound {
         hi: [0.0, 0.0, 0.0, 1.0],
     };
 
+    /// Every segment's values: premultiplied irradiance and transparency both lie in [0, 1].
+    /// The bound of a bundle that was not analysed.
+    pub const ANY: Bound = Bound {
+        lo: [0.0; 4],
+        hi: [1.0; 4],
+    };
+
     /// `self` in front of `back` (Eq. 3/4): I = I_f + T_f·I_b, T = T_f·T_b. All quantities
     /// are non-negative, so lower bounds compose with lower bounds and upper with upper.
     #[inline]

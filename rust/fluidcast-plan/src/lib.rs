@@ -34,6 +34,12 @@
 //!   plus what its transparency's width lets through of the chosen back (`level_error`).
 //!   Behind fluid that hides most of a cell, the cell may coarsen although it varies more
 //!   than E_I; in front of nothing it is the paper's cap.
+//! * The probe (beyond the paper, [`PlanParams::probe`]): an eighth of the bundles, spread
+//!   evenly, is analysed and planned first; where their plans save less than a fifth of their
+//!   cast work, the other bundles are planned at full rate without an analysis, which would
+//!   cost more than it saves (on data whose field varies across every bundle by more than
+//!   E_I). Each bundle is planned on its own, so the probe's bundles get the plan they would
+//!   get without it.
 //! * The greedy takes the cheapest option under the budget (super-pixel, then the highest
 //!   level), where the paper takes the widest bound; they differ only where a finer level's
 //!   bound is wider.
@@ -79,6 +85,10 @@ pub struct PlanParams {
     /// the pixels between where the image is smooth (image-space refinement, beyond the
     /// paper: `fluidcast_render::interpolate`).
     pub interpolate: bool,
+    /// Analyse a sample of the bundles first (beyond the paper, [`probe_pays`]) and plan the
+    /// others at full rate, without their analysis, where the sample predicts that adapting
+    /// saves the ray caster less than the analysis costs.
+    pub probe: bool,
 }
 
 impl Default for PlanParams {
@@ -89,6 +99,7 @@ impl Default for PlanParams {
             superpixels: true,
             surface_cells: true,
             interpolate: true,
+            probe: true,
         }
     }
 }
@@ -181,6 +192,9 @@ pub struct PlanStats {
     pub merged_cells: u64,
     /// Particle references the ray caster reads (after merging removed repeats).
     pub refs_sampled: u64,
+    /// Bundles with cells planned at full rate without their analysis, because the probe
+    /// predicted that adapting would not pay ([`PlanParams::probe`]).
+    pub unanalysed_bundles: u64,
 }
 
 impl PlanStats {
@@ -194,6 +208,7 @@ impl PlanStats {
         self.surface_cells += o.surface_cells;
         self.merged_cells += o.merged_cells;
         self.refs_sampled += o.refs_sampled;
+        self.unanalysed_bundles += o.unanalysed_bundles;
     }
 }
 
@@ -219,6 +234,46 @@ struct BundlePlan {
     plan: Bound,
     summary: BundleSummary,
     stats: PlanStats,
+    /// The ray caster's work at full rate and as planned ([`cast_work`]).
+    work: [u64; 2],
+}
+
+/// Every `PROBE_STRIDE`-th bundle along each row, shifted by `PROBE_ROW_SHIFT` from row to
+/// row, is in the probe ([`PlanParams::probe`]): an eighth of the image, spread evenly over
+/// it. (plan.wgsl reads these constants.)
+pub const PROBE_STRIDE: u32 = 8;
+pub const PROBE_ROW_SHIFT: u32 = 3;
+
+fn is_probe_bundle(bundles_x: u32, b: usize) -> bool {
+    let (bx, by) = (b as u32 % bundles_x, b as u32 / bundles_x);
+    (bx + PROBE_ROW_SHIFT * by).is_multiple_of(PROBE_STRIDE)
+}
+
+/// The ray caster's work in a cell, in particle-reference × depth-sample units of 1/64: each
+/// of the cell's `refs` is visited at `D_z / 2^level` depth samples of every ray (none for a
+/// super-pixel).
+fn cast_work(refs: u32, choice: Choice) -> u64 {
+    match choice {
+        Choice::Level(l) => u64::from(refs) << (LEVELS - 1 - usize::from(l)),
+        Choice::SuperPixel => 0,
+    }
+}
+
+/// Adapting pays where the planned work of the probe's bundles is at least
+/// `PROBE_SAVING_NUM / PROBE_SAVING_DEN` below their full-rate work. The analysis took 0.07
+/// to 0.19 of the full-rate cast's time on the README's dam breaks (1024 × 768, velocity);
+/// the probes of the frames where adapting paid predicted savings of 0.27 and more, those of
+/// the frames where it did not 0.15 and less (`fluidcast bench`, README). A rough measure,
+/// ignoring early termination and merging, with a margin on both sides. (plan.wgsl reads
+/// these constants.)
+pub const PROBE_SAVING_NUM: u64 = 1;
+pub const PROBE_SAVING_DEN: u64 = 5;
+
+/// Whether the probe's bundles, planned, predict that analysing the others pays: exactly
+/// (den − num) · full ≥ den · planned, so an empty probe (no work) adapts.
+fn probe_pays(work: impl Iterator<Item = [u64; 2]>) -> bool {
+    let (full, planned) = work.fold((0, 0), |(f, p), [wf, wp]| (f + wf, p + wp));
+    (PROBE_SAVING_DEN - PROBE_SAVING_NUM) * full >= PROBE_SAVING_DEN * planned
 }
 
 impl SamplingPlan {
@@ -257,13 +312,29 @@ impl SamplingPlan {
             field,
             reach: &reach,
         };
-        let bundles: Vec<BundlePlan> = (0..grid.bundle_count())
+        let plan_one = |b: usize, analyse: bool| {
+            let stop = stops.map_or(f64::INFINITY, |s| s[b]);
+            plan_bundle(&view, b, surface, stop, params, analyse)
+        };
+        let adaptive = params.tolerance.is_some();
+        let probing = adaptive && params.probe;
+        let is_probe = |b: usize| probing && is_probe_bundle(grid.bundles_x, b);
+        let probed: Vec<BundlePlan> = (0..grid.bundle_count())
             .into_par_iter()
-            .map(|b| {
-                let stop = stops.map_or(f64::INFINITY, |s| s[b]);
-                plan_bundle(&view, b, surface, stop, params)
-            })
+            .filter(|&b| is_probe(b))
+            .map(|b| plan_one(b, true))
             .collect();
+        let analyse_rest = adaptive && (!probing || probe_pays(probed.iter().map(|b| b.work)));
+        let rest: Vec<BundlePlan> = (0..grid.bundle_count())
+            .into_par_iter()
+            .filter(|&b| !is_probe(b))
+            .map(|b| plan_one(b, analyse_rest))
+            .collect();
+        let (mut probed, mut rest) = (probed.into_iter(), rest.into_iter());
+        let bundles = (0..grid.bundle_count()).filter_map(|b| match is_probe(b) {
+            true => probed.next(),
+            false => rest.next(),
+        });
         let mut plan = SamplingPlan {
             spans: Vec::new(),
             bundle_spans: vec![0],
@@ -273,12 +344,11 @@ impl SamplingPlan {
             summaries: Vec::new(),
             stats: PlanStats::default(),
         };
-        let analysed = params.tolerance.is_some();
         for bp in bundles {
             plan.spans.extend(bp.spans);
             plan.bundle_spans.push(plan.spans.len() as u32);
             plan.cell_levels.extend(bp.levels);
-            if analysed {
+            if adaptive {
                 plan.full_bounds.push(bp.full);
                 plan.plan_bounds.push(bp.plan);
                 plan.summaries.push(bp.summary);
@@ -1096,47 +1166,74 @@ fn choose_levels(
     (choice, back)
 }
 
+/// Bundle `b` at full rate, one span per cell, without an analysis: `bound` is what its
+/// plan and full-rate bounds claim (none is known: [`Bound::ANY`]).
+fn full_rate_bundle(grid: &PerspectiveGrid, b: usize, bound: Bound) -> BundlePlan {
+    let cells = grid.bundle_cells(b);
+    let first = grid.bundle_first_cell(b) as u32;
+    let n = cells.len();
+    let refs: u64 = cells.iter().map(|c| (c.end - c.start) as u64).sum();
+    let mut stats = PlanStats {
+        cells: n as u64,
+        refs_sampled: refs,
+        ..Default::default()
+    };
+    stats.level_cells[0] = n as u64;
+    let work = cells
+        .iter()
+        .map(|c| cast_work(c.end - c.start, Choice::Level(0)))
+        .sum();
+    BundlePlan {
+        spans: (0..n as u32)
+            .map(|i| Span {
+                first: first + i,
+                count: 1,
+                level: 0,
+                superpixel: None,
+            })
+            .collect(),
+        levels: vec![0; n],
+        full: bound,
+        plan: bound,
+        summary: BundleSummary {
+            predicted_error: 0.0,
+            mean_level: 0.0,
+            full: 1.0,
+            adapted: 0.0,
+            superpixel: 0.0,
+            front_sampled: if n > 0 { 1.0 } else { 0.0 },
+        },
+        stats,
+        work: [work, work],
+    }
+}
+
+/// Bundle `b`'s plan: its analysis and greedy choice of levels, and cell merging (full rate
+/// without a tolerance, or where `analyse` is false).
 fn plan_bundle(
     view: &View,
     b: usize,
     surface: Option<&[bool]>,
     stop: f64,
     params: &PlanParams,
+    analyse: bool,
 ) -> BundlePlan {
     let (grid, field) = (view.grid, view.field);
+    let tol = match params.tolerance {
+        Some(tol) if analyse => tol,
+        Some(_) => {
+            let mut bp = full_rate_bundle(grid, b, Bound::ANY);
+            bp.stats.unanalysed_bundles = u64::from(!bp.levels.is_empty());
+            return bp;
+        }
+        None => return full_rate_bundle(grid, b, Bound::EMPTY),
+    };
     let cells = grid.bundle_cells(b);
     let first = grid.bundle_first_cell(b) as u32;
     let n = cells.len();
     let mut stats = PlanStats {
         cells: n as u64,
         ..Default::default()
-    };
-    let Some(tol) = params.tolerance else {
-        // No adaptivity: every cell at full rate, one span each.
-        stats.level_cells[0] = n as u64;
-        stats.refs_sampled = cells.iter().map(|c| (c.end - c.start) as u64).sum();
-        return BundlePlan {
-            spans: (0..n as u32)
-                .map(|i| Span {
-                    first: first + i,
-                    count: 1,
-                    level: 0,
-                    superpixel: None,
-                })
-                .collect(),
-            levels: vec![0; n],
-            full: Bound::EMPTY,
-            plan: Bound::EMPTY,
-            summary: BundleSummary {
-                predicted_error: 0.0,
-                mean_level: 0.0,
-                full: 1.0,
-                adapted: 0.0,
-                superpixel: 0.0,
-                front_sampled: if n > 0 { 1.0 } else { 0.0 },
-            },
-            stats,
-        };
     };
     let cells_in = analyse_cells(view, b, surface, stop, params);
     stats.surface_cells = cells_in.iter().filter(|c| c.samples.is_none()).count() as u64;
@@ -1231,6 +1328,13 @@ fn plan_bundle(
                 grid.merged_refs(&cells[lo..lo + s.count as usize]).count() as u64;
         }
     }
+    let work = cells.iter().zip(&choice).fold([0, 0], |[f, p], (c, &ch)| {
+        let refs = c.end - c.start;
+        [
+            f + cast_work(refs, Choice::Level(0)),
+            p + cast_work(refs, ch),
+        ]
+    });
     let nn = n.max(1) as f32;
     let front_sampled = match spans.first() {
         Some(s) if s.superpixel.is_none() => 1.0,
@@ -1250,6 +1354,7 @@ fn plan_bundle(
             front_sampled,
         },
         stats,
+        work,
     }
 }
 
@@ -1272,6 +1377,45 @@ mod tests {
         assert_eq!(transmittance(f64::NAN, 1.0), None);
         let t = transmittance(2.0, 0.5).unwrap();
         assert!((t - (-1.0f64).exp()).abs() < 1e-15);
+    }
+
+    /// The probe's rule, exactly: the others are analysed where the probe's planned cast
+    /// work is at least a fifth below its full-rate work, summed over its bundles; a probe
+    /// without work (nothing in it) adapts.
+    #[test]
+    fn probe_pays_from_a_fifth_of_its_work_saved() {
+        let pays = |w: &[[u64; 2]]| probe_pays(w.iter().copied());
+        assert!(pays(&[]));
+        assert!(pays(&[[0, 0]]));
+        assert!(pays(&[[5, 4]]));
+        assert!(!pays(&[[5, 5]]));
+        assert!(pays(&[[1_000_000, 800_000]]));
+        assert!(!pays(&[[1_000_000, 800_001]]));
+        assert!(pays(&[[10, 10], [10, 6]]));
+        assert!(!pays(&[[10, 10], [10, 7]]));
+        assert!(pays(&[[u64::MAX / 8, 0]]));
+    }
+
+    /// The probe takes one bundle in every 8 consecutive ones along a row, and along a
+    /// column, whatever the image's width: an eighth of the image, evenly.
+    #[test]
+    fn probe_bundles_are_one_in_eight_along_rows_and_columns() {
+        for bx in [1u32, 3, 8, 13, 128] {
+            let rows = 24u32;
+            let probe = |x: u32, y: u32| is_probe_bundle(bx, (y * bx + x) as usize);
+            for y in 0..rows {
+                for x0 in 0..bx.saturating_sub(7) {
+                    let n = (x0..x0 + 8).filter(|&x| probe(x, y)).count();
+                    assert_eq!(n, 1, "row {y}, columns {x0}.. of {bx}");
+                }
+            }
+            for x in 0..bx {
+                for y0 in 0..rows - 7 {
+                    let n = (y0..y0 + 8).filter(|&y| probe(x, y)).count();
+                    assert_eq!(n, 1, "column {x}, rows {y0}.. of {bx}");
+                }
+            }
+        }
     }
 
     /// The parts `p` covers at depth `z`, as the coverage test finds them (`p` reaching

@@ -873,9 +873,15 @@ fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
         tolerance: Some(e),
         ..Default::default()
     };
+    // Every bundle analysed: the probe would find that the relaxed block, with few bundles,
+    // does not pay (probe_plans_the_rest_at_full_rate_where_adapting_does_not_pay).
+    let relaxed = PlanParams {
+        probe: false,
+        ..Default::default()
+    };
     for (mode, p, plan) in [
         ("strict", &ramp, strict.strict()),
-        ("relaxed", &constant, PlanParams::default()),
+        ("relaxed", &constant, relaxed),
     ] {
         prm.adaptive.tolerance = None;
         let off = render_adaptive(p, None, &cam, &tf, &prm).unwrap();
@@ -931,6 +937,73 @@ fn aovs_hold_each_bundles_bound_level_and_superpixel_share() {
     }
 }
 
+/// The probe ([`PlanParams::probe`]): its bundles are planned exactly as without it (each
+/// bundle is planned on its own). Where it pays, so is every other bundle; where it does not,
+/// the others are at full rate, counted as not analysed, and their pixels are the full-rate
+/// image's, bit for bit. On the depth ramp the relaxed plan (its surface cells at full rate)
+/// does not pay, the strict one (a third of the cells adapt) does.
+#[test]
+fn probe_plans_the_rest_at_full_rate_where_adapting_does_not_pay() {
+    let p = fluidcast_testkit::depth_ramp(20);
+    let (alpha, e, azimuth, parallel) = fluidcast_testkit::DEPTH_RAMP_CASES[0];
+    let tf = fluidcast_testkit::depth_ramp_tf(alpha);
+    let cam = camera_for(&p, azimuth, 3.0, parallel);
+    let mut paid = Vec::new();
+    for strict in [false, true] {
+        let mut prm = params(96, 72, Some(e));
+        prm.grid.depth_samples = 64;
+        prm.adaptive.interpolate = false;
+        if strict {
+            prm.adaptive = prm.adaptive.strict();
+        }
+        let with = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive.probe = false;
+        let without = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        prm.adaptive.tolerance = None;
+        let off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+        let g = &with.grid;
+        let in_probe = |b: usize| {
+            let (x, y) = (b as u32 % g.bundles_x, b as u32 / g.bundles_x);
+            (x + fluidcast_plan::PROBE_ROW_SHIFT * y).is_multiple_of(fluidcast_plan::PROBE_STRIDE)
+        };
+        let nb = g.bundle_count();
+        let probe = (0..nb).filter(|&b| in_probe(b)).count();
+        assert!(
+            probe > 4 && probe < nb / 4,
+            "{probe} of {nb} bundles in the probe"
+        );
+        for b in (0..nb).filter(|&b| in_probe(b)) {
+            let (a, z) = (&with, &without);
+            let want = bundle_levels(&z.grid, &z.plan, b);
+            assert_eq!(bundle_levels(&a.grid, &a.plan, b), want, "probe bundle {b}");
+        }
+        let skipped = with.plan.stats.unanalysed_bundles;
+        paid.push(skipped == 0);
+        if skipped == 0 {
+            assert_eq!(with.plan.cell_levels, without.plan.cell_levels);
+            assert_eq!(with.image.rgba, without.image.rgba);
+            continue;
+        }
+        let rest = (0..nb).filter(|&b| !in_probe(b) && !g.bundle_cells(b).is_empty());
+        assert_eq!(skipped as usize, rest.count(), "strict {strict}");
+        for b in (0..nb).filter(|&b| !in_probe(b)) {
+            let got = bundle_levels(&with.grid, &with.plan, b);
+            assert!(got.iter().all(|&l| l == 0), "bundle {b}");
+            assert_eq!(with.plan.summaries[b].full, 1.0);
+            let [x0, x1, y0, y1] = g.bundle(b).pixels;
+            for (i, j) in (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j))) {
+                let k = with.image.index(i, j);
+                assert_eq!(with.image.rgba[k], off.image.rgba[k], "({i},{j})");
+            }
+        }
+        let adapted = |r: &fluidcast_render::AdaptiveRender| {
+            r.plan.cell_levels.iter().filter(|&&l| l != 0).count()
+        };
+        assert!(adapted(&without) > adapted(&with), "strict {strict}");
+    }
+    assert_eq!(paid, [false, true], "relaxed, strict");
+}
+
 /// The plan's counts are those of its cells, summed over every bundle: cells per level and
 /// super-pixels as `cell_levels` holds them, and surface cells (forced to full rate) present
 /// with the surface rule, absent without it. A block of one constant value: its inside
@@ -944,6 +1017,8 @@ fn plan_stats_count_the_cells_of_each_kind() {
     let cam = camera_for(&block, azimuth, 3.0, parallel);
     let mut prm = params(90, 70, Some(0.004));
     prm.grid.depth_samples = 64;
+    // Every bundle analysed (the probe finds that this small block does not pay).
+    prm.adaptive.probe = false;
     let mut counts = Vec::new();
     for surface_rule in [true, false] {
         prm.adaptive.surface_cells = surface_rule;

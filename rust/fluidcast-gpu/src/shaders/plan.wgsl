@@ -19,13 +19,68 @@
 @group(0) @binding(13) var<storage, read_write> spans: array<Span>;      // bundle b's at bundle_cells[b]..
 @group(0) @binding(14) var<storage, read_write> span_count: array<u32>;
 @group(0) @binding(15) var<storage, read_write> summaries: array<vec4<f32>>;
-// [cells per level 0..7, super-pixel cells, surface cells, merged cells, refs sampled]
+// [cells per level 0..7, super-pixel cells, surface cells, merged cells, refs sampled,
+//  the probe's full-rate and planned cast work (u64 each, low word first), unanalysed bundles]
 @group(0) @binding(16) var<storage, read_write> plan_stats: array<atomic<u32>>;
 // [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
 @group(0) @binding(17) var<storage, read_write> guard: array<atomic<u32>>;
 // Per bundle: the nearest view depth at which opaque geometry stops one of its rays (read
 // only when bit 0 of P.has_limit is set; RenderParams::bundle_stops).
 @group(0) @binding(18) var<storage, read> stops: array<f32>;
+// x: which bundles this dispatch plans: 0 all, 1 the probe's, 2 the others (analysed only
+// where the probe pays). fluidcast_plan::SamplingPlan::build's probe.
+@group(0) @binding(19) var<uniform> phase: vec4<u32>;
+
+fn is_probe(b: u32) -> bool {
+    return (b % P.bundles_x + PROBE_ROW_SHIFT * (b / P.bundles_x)) % PROBE_STRIDE == 0u;
+}
+
+/// Whether this dispatch plans bundle b.
+fn in_phase(b: u32) -> bool {
+    return phase.x == 0u || (phase.x == 1u) == is_probe(b);
+}
+
+/// x · k for a u64 x = (low, high) below 2^61 and k < 2^16.
+fn mul64(x: vec2<u32>, k: u32) -> vec2<u32> {
+    let p0 = (x.x & 0xffffu) * k;
+    let p1 = (x.x >> 16u) * k + (p0 >> 16u);
+    return vec2<u32>((p0 & 0xffffu) | (p1 << 16u), x.y * k + (p1 >> 16u));
+}
+
+fn stat64(i: u32) -> vec2<u32> {
+    return vec2<u32>(atomicLoad(&plan_stats[i]), atomicLoad(&plan_stats[i + 1u]));
+}
+
+/// fluidcast_plan's `probe_pays`, exactly: (den − num) · full ≥ den · planned.
+fn probe_pays() -> bool {
+    let a = mul64(stat64(11u), PROBE_SAVING_DEN - PROBE_SAVING_NUM);
+    let b = mul64(stat64(13u), PROBE_SAVING_DEN);
+    return a.y > b.y || (a.y == b.y && a.x >= b.x);
+}
+
+/// Whether bundle b gets the error analysis (in an adaptive plan).
+fn analysed(b: u32) -> bool {
+    return phase.x != 2u || probe_pays();
+}
+
+fn add64(i: u32, v: vec2<u32>) {
+    let old = atomicAdd(&plan_stats[i], v.x);
+    atomicAdd(&plan_stats[i + 1u], v.y + select(0u, 1u, old + v.x < old));
+}
+
+/// fluidcast_plan's `cast_work` of a cell, as a u64.
+fn cast_work(refs: u32, level: u32) -> vec2<u32> {
+    if (level == 255u) {
+        return vec2<u32>(0u);
+    }
+    let s = LEVELS - 1u - level;
+    return vec2<u32>(refs << s, select(refs >> (32u - s), 0u, s == 0u));
+}
+
+fn sum64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    let lo = a.x + b.x;
+    return vec2<u32>(lo, a.y + b.y + select(0u, 1u, lo < a.x));
+}
 
 /// A bundle's rays: extremes of the direction's (perspective) or origin's (parallel) x and y
 /// over its pixel centres, and of |d| (fluidcast_grid::Bundle).
@@ -191,6 +246,7 @@ fn tf_range(q0: f32, q1: f32) -> ValueBound {
 var<workgroup> parts: array<Rays, 16>;
 var<workgroup> vbs: array<ValueBound, 64>;
 var<workgroup> cell_flags: atomic<u32>;
+var<workgroup> skip_cell: bool;
 // Per invocation: what its share of the cell's references gave its depth sample.
 var<workgroup> g_q: array<vec4<f32>, 64>;   // (qlo, qhi, slo, shi)
 var<workgroup> g_any: array<u32, 64>;
@@ -215,6 +271,12 @@ fn analyse(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
         return;
     }
     let cell = cells[c];
+    if (li == 0u) {
+        skip_cell = !in_phase(cell.bundle) || !analysed(cell.bundle);
+    }
+    if (workgroupUniformLoad(&skip_cell)) {
+        return;
+    }
     let px = bundle_pixels(cell.bundle);
     let rays = rays_of(px);
     let gx = min(4u, px.y - px.x);
@@ -391,7 +453,7 @@ fn span_of(c: u32, level: u32) -> Span {
 fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
           @builtin(local_invocation_index) li: u32) {
     let b = group_index(wg, nw) * 64u + li;
-    if (b >= P.bundles_x * P.bundles_y) {
+    if (b >= P.bundles_x * P.bundles_y || !in_phase(b)) {
         return;
     }
     let c0 = bundle_cells[b];
@@ -410,12 +472,16 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
     var n_sp = 0u;
     var n_surface = 0u;
     var back = bound_empty();
-    if (P.tolerance < 0.0) {
-        // No adaptivity: every cell at full rate.
+    let adapt = P.tolerance >= 0.0 && analysed(b);
+    if (!adapt) {
+        // No adaptivity, or the probe found it does not pay: every cell at full rate.
         for (var c = c0; c < c1; c = c + 1u) {
             levels[c] = 0u;
         }
         level_cells[0] = n;
+        if (P.tolerance >= 0.0) {
+            atomicAdd(&plan_stats[15], 1u);
+        }
     } else {
         // Front composites of the relaxed full-rate bounds (cells c0..c).
         var f = bound_empty();
@@ -530,8 +596,18 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
     let sampled = n - n_sp;
     let adapted = sampled - level_cells[0];
     var predicted = 0.0;
-    if (P.tolerance >= 0.0) {
+    if (adapt) {
         predicted = width(back);
+    }
+    if (phase.x == 1u) {
+        var work = array<vec2<u32>, 2>(vec2<u32>(0u), vec2<u32>(0u));
+        for (var c = c0; c < c1; c = c + 1u) {
+            let r = cells[c].end - cells[c].start;
+            work[0] = sum64(work[0], cast_work(r, 0u));
+            work[1] = sum64(work[1], cast_work(r, levels[c]));
+        }
+        add64(11u, work[0]);
+        add64(13u, work[1]);
     }
     summaries[2u * b] = vec4<f32>(predicted, f32(lsum) / f32(max(sampled, 1u)),
                                   f32(level_cells[0]) / nn, f32(adapted) / nn);
