@@ -1166,6 +1166,70 @@ fn choose_levels(
     (choice, back)
 }
 
+/// Cell merging (Sec. 6.2): the spans of a bundle's `cells` (the first at index `first` of
+/// the grid's cells) with their chosen levels: pairs of aligned runs of equal size and level,
+/// level by level up to `maxl`; a super-pixel is a span of its own.
+fn merge_spans(
+    cells: &[Cell],
+    first: u32,
+    choice: &[Choice],
+    cells_in: &[CellAnalysis],
+    maxl: usize,
+) -> Vec<Span> {
+    let mut spans: Vec<(Span, u32)> = cells
+        .iter()
+        .enumerate()
+        .map(|(i, cell)| {
+            let (level, sp) = match choice[i] {
+                Choice::Level(l) => (l, None),
+                Choice::SuperPixel => (0, Some(cells_in[i].full.mid().map(|v| v as f32))),
+            };
+            (
+                Span {
+                    first: first + i as u32,
+                    count: 1,
+                    level,
+                    superpixel: sp,
+                },
+                cell.z,
+            )
+        })
+        .collect();
+    for m in 0..maxl as u32 {
+        let size = 1u32 << m;
+        let mut merged = Vec::with_capacity(spans.len());
+        let mut i = 0;
+        while i < spans.len() {
+            let (a, za) = spans[i];
+            if let Some(&(bs, zb)) = spans.get(i + 1) {
+                if a.superpixel.is_none()
+                    && bs.superpixel.is_none()
+                    && a.level == bs.level
+                    && a.level as u32 > m
+                    && a.count == size
+                    && bs.count == size
+                    && za % (2 * size) == 0
+                    && zb == za + size
+                {
+                    merged.push((
+                        Span {
+                            count: 2 * size,
+                            ..a
+                        },
+                        za,
+                    ));
+                    i += 2;
+                    continue;
+                }
+            }
+            merged.push((a, za));
+            i += 1;
+        }
+        spans = merged;
+    }
+    spans.into_iter().map(|s| s.0).collect()
+}
+
 /// Bundle `b` at full rate, one span per cell, without an analysis: `bound` is what its
 /// plan and full-rate bounds claim (none is known: [`Bound::ANY`]).
 fn full_rate_bundle(grid: &PerspectiveGrid, b: usize, bound: Bound) -> BundlePlan {
@@ -1244,59 +1308,7 @@ fn plan_bundle(
         .rev()
         .fold(Bound::EMPTY, |acc, c| c.full.over(&acc));
 
-    // Cell merging (Sec. 6.2): pairs of aligned runs of equal size and level, level by level.
-    let mut spans: Vec<(Span, u32)> = cells
-        .iter()
-        .enumerate()
-        .map(|(i, cell)| {
-            let (level, sp) = match choice[i] {
-                Choice::Level(l) => (l, None),
-                Choice::SuperPixel => (0, Some(cells_in[i].full.mid().map(|v| v as f32))),
-            };
-            (
-                Span {
-                    first: first + i as u32,
-                    count: 1,
-                    level,
-                    superpixel: sp,
-                },
-                cell.z,
-            )
-        })
-        .collect();
-    for m in 0..maxl as u32 {
-        let size = 1u32 << m;
-        let mut merged = Vec::with_capacity(spans.len());
-        let mut i = 0;
-        while i < spans.len() {
-            let (a, za) = spans[i];
-            if let Some(&(bs, zb)) = spans.get(i + 1) {
-                if a.superpixel.is_none()
-                    && bs.superpixel.is_none()
-                    && a.level == bs.level
-                    && a.level as u32 > m
-                    && a.count == size
-                    && bs.count == size
-                    && za % (2 * size) == 0
-                    && zb == za + size
-                {
-                    merged.push((
-                        Span {
-                            count: 2 * size,
-                            ..a
-                        },
-                        za,
-                    ));
-                    i += 2;
-                    continue;
-                }
-            }
-            merged.push((a, za));
-            i += 1;
-        }
-        spans = merged;
-    }
-    let spans: Vec<Span> = spans.into_iter().map(|s| s.0).collect();
+    let spans = merge_spans(cells, first, &choice, &cells_in, maxl);
 
     // Statistics and the bundle summary.
     let mut levels = vec![0u8; n];
