@@ -30,10 +30,11 @@ pub(crate) struct Plan {
     pub(crate) counters: wgpu::Buffer,
 }
 
-/// The error analysis' per-cell results.
+/// The error analysis' per-cell results, and the greedy's front composites.
 struct Analysis {
     bounds: wgpu::Buffer,
     info: wgpu::Buffer,
+    front: wgpu::Buffer,
 }
 
 impl Gpu {
@@ -64,6 +65,7 @@ impl Gpu {
         let a = Analysis {
             bounds: self.buffer("cell bounds", BOUND_BYTES * nc, RW, None),
             info: self.buffer("cell info", 4 * nc, RW, None),
+            front: self.buffer("front bounds", 32 * nc, RW, None),
         };
         let plan = Plan {
             tf: self.tf_buffer(tf),
@@ -132,7 +134,6 @@ impl Gpu {
         a: &Analysis,
         phase: &wgpu::Buffer,
     ) -> Result<(), GpuError> {
-        let front = self.buffer("front bounds", 32 * grid.cells_n as u64, RW, None);
         let binds = [
             ("phase", phase),
             ("P", &ctx.frame_buf),
@@ -140,7 +141,7 @@ impl Gpu {
             ("bounds", &a.bounds),
             ("info", &a.info),
             ("bundle_cells", &grid.bundle_cells),
-            ("front", &front),
+            ("front", &a.front),
             ("levels", &plan.levels),
             ("spans", &plan.spans),
             ("span_count", &plan.span_count),
