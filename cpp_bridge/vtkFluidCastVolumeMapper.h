@@ -183,7 +183,8 @@ public:
   /**
    * Most memory (MiB) one render may take beyond the particles the mapper holds: above it,
    * the view is rendered in screen tiles, each with only the particles that reach it, to the
-   * same image. 0 (default): no limit. A limit too small for the image and a minimal tile is
+   * same image (but for the adaptive plan's probe, which each tile decides for itself: then
+   * within the plan's error). 0 (default): no limit. A limit too small for the image and a minimal tile is
    * an error (nothing is drawn).
    */
   vtkSetClampMacro(MemoryLimit, double, 0.0, 1.0e9);

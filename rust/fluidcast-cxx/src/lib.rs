@@ -70,7 +70,8 @@ mod ffi {
         /// A GPU adapter by a part of its name ("" = the best; FLUIDCAST_ADAPTER applies).
         adapter: String,
         /// Most memory (MiB) a render may take beyond the particles it holds: the view is
-        /// rendered in screen tiles to stay within it, to the same image; <= 0: no limit.
+        /// rendered in screen tiles to stay within it, to the same image (the plan's probe
+        /// decided per tile: within the plan's error); <= 0: no limit.
         memory_limit_mib: f64,
         /// Particle level of detail (Fraedrich et al. 2010): each part of the view is drawn
         /// at the coarsest level of merged particles whose cells are at most this many pixels

@@ -13,6 +13,13 @@
 //! * a subset keeps the particles' order, so every sum adds the same terms in the same order;
 //! * what is decided over all particles is decided once, before the tiles: the surface
 //!   particles of the adaptive plan.
+//!
+//! Except the plan's probe ([`crate::PlanParams::probe`], on by default): each tile takes its
+//! decision from the probe bundles it holds, so where tiles decide differently from one
+//! render the images differ, each pixel still as the plan allows against full rate. Without
+//! the probe (and, in the relaxed mode, without image-space interpolation) the image is the
+//! same bit for bit. (A decision over the whole view would need every tile's probe planned
+//! before the first tile is cast: a second grid per tile.)
 
 use std::sync::Arc;
 use std::time::Instant;

@@ -33,8 +33,12 @@ fn render(
         Renderer::Reference => render_reference(p, cam, tf, prm),
         Renderer::Adaptive(tolerance) => {
             let prm = RenderParams {
+                // Every bundle analysed: with the probe, each tile takes the probe's decision
+                // from its own bundles (tiles.rs), and the bits may differ where tiles decide
+                // differently.
                 adaptive: PlanParams {
                     tolerance,
+                    probe: false,
                     ..prm.adaptive
                 },
                 ..prm.clone()
