@@ -85,9 +85,9 @@ pub struct PlanParams {
     /// the pixels between where the image is smooth (image-space refinement, beyond the
     /// paper: `fluidcast_render::interpolate`).
     pub interpolate: bool,
-    /// Analyse a sample of the bundles first (beyond the paper, [`probe_pays`]) and plan the
-    /// others at full rate, without their analysis, where the sample predicts that adapting
-    /// saves the ray caster less than the analysis costs.
+    /// Analyse a sample of the bundles first (beyond the paper; see the crate's
+    /// documentation) and plan the others at full rate, without their analysis, where the
+    /// sample predicts that adapting saves the ray caster less than the analysis costs.
     pub probe: bool,
 }
 
