@@ -179,8 +179,9 @@ fn wgsl_name(prefix: &str, name: &str) -> String {
     format!("{prefix}_{}", name.to_ascii_uppercase().replace('-', "_"))
 }
 
-/// Constants the Rust side owns, prepended to every shader: the kernel and field codes and
-/// the transfer-function size limit.
+/// Constants the Rust side owns, prepended to every shader: the transfer-function size limit,
+/// the sampling plan's probe (which bundles, and the saving that pays), and the kernel and
+/// field codes.
 pub(crate) fn wgsl_prelude() -> String {
     use fluidcast_plan::{PROBE_ROW_SHIFT, PROBE_SAVING_DEN, PROBE_SAVING_NUM, PROBE_STRIDE};
     let mut s = format!("const MAX_TF_POINTS: u32 = {MAX_TF_POINTS}u;\n");
