@@ -66,11 +66,20 @@ pub fn run(a: InfoArgs) -> Result<()> {
         .map(|x| json!({"name": x.name, "type": x.scalar_type.vtk_name(), "components": x.num_components, "values": x.values.iter().take(16).collect::<Vec<_>>()}))
         .collect();
     let bounds = ds.bounds().map(|(lo, hi)| json!({"min": lo, "max": hi}));
+    let other: serde_json::Map<String, serde_json::Value> = ds
+        .cells
+        .other
+        .iter()
+        .map(|(k, n)| (k.clone(), json!(n)))
+        .collect();
+    let cells =
+        json!({"count": ds.cells.count, "not_vertices": other, "cell_data": ds.cells.cell_arrays});
     if a.json {
         out!(
             "{}",
             json!({"file": ds.path, "frames": frames.len(), "points": ds.points.len(), "nonfinite_points": nonfinite,
-                   "bounds": bounds, "point_data": arrays, "field_data": fields, "suggested_support_radius": suggested})
+                   "bounds": bounds, "point_data": arrays, "field_data": fields, "cells": cells,
+                   "suggested_support_radius": suggested})
         );
         return Ok(());
     }
@@ -96,6 +105,12 @@ pub fn run(a: InfoArgs) -> Result<()> {
             String::new()
         }
     );
+    if let Some(dropped) = ds.cells.dropped() {
+        out!(
+            "cells:  {} ({dropped}; fluidcast renders the points only)",
+            ds.cells.count
+        );
+    }
     if let Some((lo, hi)) = ds.bounds() {
         out!(
             "bounds: x [{:.6}, {:.6}]  y [{:.6}, {:.6}]  z [{:.6}, {:.6}] (world units)",

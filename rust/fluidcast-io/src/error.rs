@@ -39,6 +39,10 @@ pub enum ReadErrorKind {
     Xml(String),
     #[error("{0}")]
     Format(String),
+    /// A data set that is not particles: a structured grid or image (its geometry lies in
+    /// its structure, not its points), or a file listed in a `.pvd` of another kind.
+    #[error("{0}")]
+    NotParticles(String),
     #[error("array '{array}': {problem}")]
     Array { array: String, problem: String },
     #[error("truncated file: {0}")]

@@ -5,14 +5,15 @@
 //! the points, the point data (`SCALARS`, `VECTORS`, `NORMALS`, `TENSORS`, `TENSORS6`,
 //! `TEXTURE_COORDINATES`, `COLOR_SCALARS`, `GLOBAL_IDS`, `PEDIGREE_IDS`, `FIELD` arrays) and
 //! the data-set field data (`FIELD FieldData n` after `DATASET`, e.g. `TIME`); cells
-//! (4.x `CELLS n size` or 5.1 `OFFSETS`/`CONNECTIVITY`), cell types, cell data, lookup tables
-//! and `METADATA` blocks are skipped. Counts from the file are checked against the bytes
+//! (4.x `CELLS n size` or 5.1 `OFFSETS`/`CONNECTIVITY`), cell data, lookup tables and
+//! `METADATA` blocks are skipped, the cells and cell data counted by kind and name
+//! ([`crate::Cells`], from the cell sections and `CELL_TYPES`). Counts from the file are checked against the bytes
 //! that remain before anything is allocated.
 
 use std::path::Path;
 
 use crate::xml::parse_token;
-use crate::{DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
+use crate::{Cells, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
 /// A position in the file with the helpers the legacy grammar needs.
 struct Cursor<'a> {
@@ -230,11 +231,12 @@ struct Parsed {
     point_data: Vec<DataArray>,
     field_data: Vec<DataArray>,
     point_data_count: Option<usize>,
+    cells: Cells,
 }
 
 pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     let err = |m: String| ReadError::new(path, ReadErrorKind::Format(m));
-    let (kind, c) = parse_header(bytes).map_err(err)?;
+    let (kind, c) = parse_header(bytes).map_err(|k| ReadError::new(path, k))?;
     let p = parse_body(c).map_err(err)?;
     let points = p.points.ok_or_else(|| err("no POINTS section".into()))?;
     if let Some(n) = p.point_data_count.filter(|&n| n != points.len()) {
@@ -250,11 +252,27 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
         point_data: p.point_data,
         field_data: p.field_data,
         undecoded: Vec::new(),
+        cells: p.cells,
     })
 }
 
-/// The three header lines and the `DATASET` line.
-fn parse_header(bytes: &[u8]) -> Res<(DatasetKind, Cursor<'_>)> {
+/// The three header lines and the `DATASET` line; a data set type other than an
+/// unstructured grid or poly data is [`ReadErrorKind::NotParticles`].
+fn parse_header(bytes: &[u8]) -> Result<(DatasetKind, Cursor<'_>), ReadErrorKind> {
+    let mut kind = None;
+    let c = parse_header_lines(bytes, &mut kind).map_err(|m| match kind {
+        Some(false) => ReadErrorKind::NotParticles(m),
+        _ => ReadErrorKind::Format(m),
+    })?;
+    Ok(c)
+}
+
+/// [`parse_header`]'s lines; `particles` is set to whether the `DATASET` type holds
+/// particles once it has been read.
+fn parse_header_lines<'a>(
+    bytes: &'a [u8],
+    particles: &mut Option<bool>,
+) -> Res<(DatasetKind, Cursor<'a>)> {
     let mut c = Cursor {
         b: bytes,
         pos: 0,
@@ -282,10 +300,11 @@ fn parse_header(bytes: &[u8]) -> Res<(DatasetKind, Cursor<'_>)> {
         Some("UNSTRUCTURED_GRID") => DatasetKind::UnstructuredGrid,
         Some("POLYDATA") => DatasetKind::PolyData,
         Some(o) => {
+            *particles = Some(false);
             return c.err(
                 at,
                 format!("DATASET {o} is not particle data (only UNSTRUCTURED_GRID and POLYDATA)"),
-            )
+            );
         }
         None => return c.err(at, "DATASET without a type"),
     };
@@ -310,12 +329,20 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                 c.maybe_metadata();
             }
             "VERTICES" | "LINES" | "POLYGONS" | "TRIANGLE_STRIPS" | "CELLS" => {
-                skip_cells(&mut c, key)?
+                let n = skip_cells(&mut c, key)? as u64;
+                // An unstructured grid's cells are counted by their CELL_TYPES.
+                match key.to_ascii_uppercase().as_str() {
+                    "VERTICES" => p.cells.add("vertices", n, true),
+                    "LINES" => p.cells.add("lines", n, false),
+                    "POLYGONS" => p.cells.add("polygons", n, false),
+                    "TRIANGLE_STRIPS" => p.cells.add("triangle strips", n, false),
+                    _ => {}
+                }
             }
             "CELL_TYPES" => {
                 let (at, w) = c.header("CELL_TYPES", 1)?;
                 let n = c.count(at, &w, 1, "cell count")?;
-                c.values(n, ScalarType::I32, false)?;
+                p.cells.add_types(c.values(n, ScalarType::I32, true)?);
             }
             "METADATA" => c.skip_metadata(),
             "POINT_DATA" | "CELL_DATA" => {
@@ -342,7 +369,7 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                 match section {
                     Section::DataSet => p.field_data.extend(arrays),
                     Section::Point(_) => p.point_data.extend(arrays),
-                    Section::Cell(_) => {}
+                    Section::Cell(_) => arrays.iter().for_each(|a| p.cells.add_array(&a.name)),
                 }
             }
             _ => {
@@ -355,9 +382,10 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                         )
                     }
                 };
-                let a = attribute(&mut c, n)?;
-                if let (Section::Point(_), Some(a)) = (section, a) {
-                    p.point_data.push(a);
+                match (section, attribute(&mut c, n)?) {
+                    (Section::Point(_), Some(a)) => p.point_data.push(a),
+                    (Section::Cell(_), Some(a)) => p.cells.add_array(&a.name),
+                    _ => {}
                 }
             }
         }
@@ -366,8 +394,8 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
 }
 
 /// Skips one cell section: 4.x `KEY n size` + `size` ints, or 5.1 `KEY noffsets nconn`
-/// + `OFFSETS type` + values + `CONNECTIVITY type` + values.
-fn skip_cells(c: &mut Cursor<'_>, key: &str) -> Res<()> {
+/// + `OFFSETS type` + values + `CONNECTIVITY type` + values. Returns its number of cells.
+fn skip_cells(c: &mut Cursor<'_>, key: &str) -> Res<usize> {
     let (at, w) = c.header(key, 2)?;
     let a = c.count(at, &w, 1, "cell count")?;
     let b = c.count(at, &w, 2, "cell list size")?;
@@ -377,10 +405,11 @@ fn skip_cells(c: &mut Cursor<'_>, key: &str) -> Res<()> {
             let st = c.scalar_type(at, w.get(1).unwrap_or(&""))?;
             c.values(n, st, false)?;
         }
-    } else {
-        c.values(b, ScalarType::I32, false)?;
+        // 5.1 counts the offsets, one more than the cells.
+        return Ok(a.saturating_sub(1));
     }
-    Ok(())
+    c.values(b, ScalarType::I32, false)?;
+    Ok(a)
 }
 
 /// `FIELD name n` and its `n` arrays (`name ncomp ntuples type` + values); `tuples` is the

@@ -20,7 +20,10 @@
 //! ([`fluidcast_mem`]).
 //!
 //! Only the points, the point data and the field data are kept: cells are irrelevant for
-//! mesh-free particles (every point is a particle, whatever cells reference it).
+//! mesh-free particles (every point is a particle, whatever cells reference it). What a
+//! file has besides (cells other than vertices, cell data) is counted in [`Cells`], so that
+//! a front end that hands the data on can refuse a mesh instead of dropping its cells
+//! ([`cells_of`]).
 
 // Input must not be able to make this crate panic or truncate a size.
 #![cfg_attr(
@@ -28,6 +31,7 @@
     deny(clippy::indexing_slicing, clippy::cast_possible_truncation)
 )]
 
+mod cells;
 mod error;
 mod legacy;
 mod parallel;
@@ -37,6 +41,7 @@ pub mod xml;
 
 use std::path::{Path, PathBuf};
 
+pub use cells::{cell_type_name, Cells};
 pub use error::{ReadError, ReadErrorKind};
 pub use parallel::{parse_parallel, ParallelFile};
 pub use pvd::{parse_collection, read_collection, Collection, CollectionEntry};
@@ -254,6 +259,9 @@ pub struct Dataset {
     /// Point arrays the file has but the read did not decode ([`Arrays::Named`]), so that
     /// an error about a missing array can still list what the file holds.
     pub undecoded: Vec<(String, usize)>,
+    /// The file's cells and cell data, which are not read: what a reader that hands the
+    /// particles on as the file's data would drop ([`Cells::dropped`]).
+    pub cells: Cells,
 }
 
 impl Dataset {
@@ -336,6 +344,18 @@ pub fn parse_dataset(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
     parse_as(Format::of(path)?, bytes, path, &Arrays::All)
 }
 
+/// The cells and cell data of the particle file `path` ([`Cells`]), reading as little of
+/// it as it can: the XML head and the cell types of an appended `.vtu`/`.vtp`; other files
+/// (legacy, inline XML, parallel) are read whole. A file whose data set type is not
+/// particles (a structured grid, image data) is [`ReadErrorKind::NotParticles`]; a damaged
+/// file is the error a full read gives.
+pub fn cells_of(path: impl AsRef<Path>) -> Result<Cells, ReadError> {
+    match open_lazy(path, &Arrays::Named(Vec::new()))? {
+        LazyDataset::Xml(x) => x.cells(),
+        LazyDataset::Read(d) => Ok(d.cells),
+    }
+}
+
 /// A particle file opened for reading one array at a time, so that what a render keeps of
 /// an array (single precision, the particles' order) replaces it before the next one is
 /// decoded: appended `.vtu`/`.vtp` files (what SPH codes and ParaView write) are read by
@@ -381,6 +401,14 @@ impl LazyDataset {
     /// First value of a field-data array (as [`Dataset::field_scalar`]).
     pub fn field_scalar(&self, name: &str) -> Option<f64> {
         first_value(self.field_data(), name)
+    }
+
+    /// The file's cells and cell data ([`Cells`]; decoded now for an appended file).
+    pub fn cells(&self) -> Result<Cells, ReadError> {
+        match self {
+            LazyDataset::Xml(x) => x.cells(),
+            LazyDataset::Read(d) => Ok(d.cells.clone()),
+        }
     }
 
     /// Every point array the file has, as (name, components), decoded or not.

@@ -16,7 +16,7 @@ use std::sync::Mutex;
 use quick_xml::events::Event;
 
 use crate::xml::tag_attrs;
-use crate::{Arrays, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind};
+use crate::{Arrays, Cells, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind};
 
 /// VTK's ghost array and the bits that mark a point as not this piece's own
 /// (`vtkDataSetAttributes::DUPLICATEPOINT | HIDDENPOINT`).
@@ -244,7 +244,11 @@ pub(crate) fn concat(path: &Path, kind: DatasetKind, pieces: &[Dataset]) -> Data
             .first()
             .map(|d| d.undecoded.clone())
             .unwrap_or_default(),
+        cells: Cells::default(),
     };
+    for ds in pieces {
+        out.cells.merge(&ds.cells);
+    }
     out.point_data = names
         .iter()
         .filter_map(|(n, _)| pieces.first()?.point_array(n))

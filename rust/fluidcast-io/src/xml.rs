@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 use quick_xml::events::{BytesStart, Event};
 
 use crate::payload::{decode_base64, decode_raw_values, Compressor, Ctx};
-use crate::{Arrays, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
+use crate::{Arrays, Cells, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
 /// Attributes of one element as owned strings.
 pub(crate) fn attrs(e: &BytesStart) -> Result<HashMap<String, String>, String> {
@@ -50,6 +50,10 @@ enum Section {
     Points,
     PointData,
     FieldData,
+    /// An unstructured grid's `<Cells>` (connectivity, offsets, types).
+    Cells,
+    CellData,
+    /// A poly data's `<Verts>`, `<Lines>`, `<Strips>`, `<Polys>`.
     Other,
 }
 
@@ -63,8 +67,33 @@ struct ArrayDecl {
 #[derive(Default)]
 struct Piece {
     num_points: usize,
+    /// The cells the `<Piece>` declares.
+    counts: CellCounts,
     points: Option<Vec<[f64; 3]>>,
     point_data: Vec<DataArray>,
+}
+
+/// The cell counts a `<Piece>` declares: `NumberOfCells` (unstructured grid), and
+/// `NumberOfVerts`, `NumberOfLines`, `NumberOfStrips`, `NumberOfPolys` (poly data).
+#[derive(Default, Clone, Copy)]
+struct CellCounts {
+    cells: usize,
+    verts: usize,
+    lines: usize,
+    strips: usize,
+    polys: usize,
+}
+
+impl CellCounts {
+    fn of(a: &HashMap<String, String>) -> Result<CellCounts, ReadErrorKind> {
+        Ok(CellCounts {
+            cells: parse_count(a, "NumberOfCells")?,
+            verts: parse_count(a, "NumberOfVerts")?,
+            lines: parse_count(a, "NumberOfLines")?,
+            strips: parse_count(a, "NumberOfStrips")?,
+            polys: parse_count(a, "NumberOfPolys")?,
+        })
+    }
 }
 
 /// Position of the first `needle` in `hay` at or after `from`.
@@ -250,14 +279,15 @@ impl HeadParser {
             b"PolyData" => self.kind = Some(DatasetKind::PolyData),
             b"Piece" => self.pieces.push(Piece {
                 num_points: parse_count(&a, "NumberOfPoints")?,
+                counts: CellCounts::of(&a)?,
                 ..Default::default()
             }),
             b"Points" if !empty => self.section = Section::Points,
             b"PointData" if !empty => self.section = Section::PointData,
             b"FieldData" if !empty => self.section = Section::FieldData,
-            b"CellData" | b"Cells" | b"Verts" | b"Lines" | b"Strips" | b"Polys" if !empty => {
-                self.section = Section::Other
-            }
+            b"Cells" if !empty => self.section = Section::Cells,
+            b"CellData" if !empty => self.section = Section::CellData,
+            b"Verts" | b"Lines" | b"Strips" | b"Polys" if !empty => self.section = Section::Other,
             b"DataArray" | b"Array" => {
                 let decl = ArrayDecl {
                     attrs: a,
@@ -272,7 +302,7 @@ impl HeadParser {
                 }
             }
             b"ImageData" | b"RectilinearGrid" | b"StructuredGrid" => {
-                return Err(ReadErrorKind::Format(format!(
+                return Err(ReadErrorKind::NotParticles(format!(
                     "{} files are not particle data (expected UnstructuredGrid or PolyData)",
                     String::from_utf8_lossy(e.name().as_ref())
                 )))
@@ -436,6 +466,11 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
         app.offsets = appended_offsets(&h.decls);
     }
     let ctx = file_ctx(&h.file_attrs).map_err(err)?;
+    let counts: Vec<CellCounts> = h.pieces.iter().map(|p| p.counts).collect();
+    let cells = cells_of(h.kind, &counts, &h.decls, |d, n| {
+        read_array(d, Some(n), ctx, appended.as_ref())
+    })
+    .map_err(err)?;
     let mut pieces = h.pieces;
     let mut field_data = Vec::new();
     let mut undecoded = Vec::new();
@@ -444,8 +479,11 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
     let mut decls = h.decls;
     decls.sort_by_key(|d| d.section != Section::Points);
     for d in decls {
-        if matches!(d.section, Section::Other | Section::None) {
-            continue; // cells and cell data do not matter for particles
+        if matches!(
+            d.section,
+            Section::Other | Section::None | Section::Cells | Section::CellData
+        ) {
+            continue; // cells and cell data are not particles' (counted in `cells`)
         }
         let name = name_of(&d);
         if d.section == Section::PointData && !arrays.wants(name) {
@@ -481,7 +519,48 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
         point_data,
         field_data,
         undecoded,
+        cells,
     })
+}
+
+/// The cells of a file's pieces: the counts they declare, each unstructured piece's cell
+/// types (its `types` array, decoded by `types` with the piece's cell count), and the
+/// cell-data arrays' names.
+fn cells_of(
+    kind: DatasetKind,
+    counts: &[CellCounts],
+    decls: &[ArrayDecl],
+    mut types: impl FnMut(&ArrayDecl, usize) -> Result<Option<DataArray>, ReadErrorKind>,
+) -> Result<Cells, ReadErrorKind> {
+    let mut cells = Cells::default();
+    for d in decls.iter().filter(|d| d.section == Section::CellData) {
+        cells.add_array(name_of(d));
+    }
+    for (i, c) in counts.iter().enumerate() {
+        match kind {
+            DatasetKind::PolyData => {
+                cells.add("vertices", c.verts as u64, true);
+                cells.add("lines", c.lines as u64, false);
+                cells.add("triangle strips", c.strips as u64, false);
+                cells.add("polygons", c.polys as u64, false);
+            }
+            DatasetKind::UnstructuredGrid if c.cells > 0 => {
+                let decl = decls
+                    .iter()
+                    .find(|d| d.piece == i && d.section == Section::Cells && name_of(d) == "types");
+                let missing = || {
+                    ReadErrorKind::Format(format!(
+                        "piece {i} has {} cells but no cell 'types' array",
+                        c.cells
+                    ))
+                };
+                let array = types(decl.ok_or_else(missing)?, c.cells)?.ok_or_else(missing)?;
+                cells.add_types(array.values);
+            }
+            DatasetKind::UnstructuredGrid => {}
+        }
+    }
+    Ok(cells)
 }
 
 /// Reads one declared array; `None` for arrays that cannot be rendered (strings).
@@ -706,8 +785,12 @@ pub struct LazyXml {
     ctx: Ctx,
     /// Points per piece.
     pieces: Vec<usize>,
+    /// The cells each piece declares.
+    counts: Vec<CellCounts>,
     /// The points' and point data's declarations.
     decls: Vec<ArrayDecl>,
+    /// The cells' and cell data's declarations (read by [`LazyXml::cells`] only).
+    cell_decls: Vec<ArrayDecl>,
     field_data: Vec<DataArray>,
     appended: Option<AppendedFile>,
 }
@@ -799,7 +882,9 @@ impl LazyXml {
             kind: h.kind,
             ctx,
             pieces: h.pieces.iter().map(|p| p.num_points).collect(),
+            counts: h.pieces.iter().map(|p| p.counts).collect(),
             decls: Vec::new(),
+            cell_decls: Vec::new(),
             field_data: Vec::new(),
             appended,
         };
@@ -814,6 +899,7 @@ impl LazyXml {
                         lazy.field_data.push(a);
                     }
                 }
+                Section::Cells | Section::CellData => lazy.cell_decls.push(d),
                 _ => {}
             }
         }
@@ -826,6 +912,17 @@ impl LazyXml {
 
     pub fn kind(&self) -> DatasetKind {
         self.kind
+    }
+
+    /// The file's cells and cell data ([`Cells`]): the pieces' declared counts and, for an
+    /// unstructured grid, its cell types, decoded now (one byte per cell in the file).
+    pub fn cells(&self) -> Result<Cells, ReadError> {
+        let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
+        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        cells_of(self.kind, &self.counts, &self.cell_decls, |d, n| {
+            self.decode(d, Some(n), &f)
+        })
+        .map_err(err)
     }
 
     /// Points of all pieces.
