@@ -306,10 +306,14 @@ int vtkFluidCastReader::CanReadFile(const char* fname)
     return 0;
   }
   const std::string s(fname);
-  return HasExtension(s, "vtu") || HasExtension(s, "vtp") || HasExtension(s, "vtk") ||
-      HasExtension(s, "pvd")
-    ? 1
-    : 0;
+  if (!(HasExtension(s, "vtu") || HasExtension(s, "vtp") || HasExtension(s, "vtk") ||
+        HasExtension(s, "pvd")))
+  {
+    return 0;
+  }
+  // Particles only: a mesh (cells other than vertices, cell data) or a structured grid is
+  // left to VTK's and ParaView's own readers, which keep what this reader would drop.
+  return fluidcast::particle_reader_claims(s) ? 1 : 0;
 }
 
 int vtkFluidCastReader::GetNumberOfTimeSteps() const

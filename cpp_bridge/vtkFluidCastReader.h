@@ -5,7 +5,14 @@
  *
  * The output is a vtkPolyData: the file's points (double precision), one vertex cell per
  * point, its point-data arrays (with the numeric type they had in the file) and its field
- * data (e.g. TIME, support_radius). Cells of the file are not kept: every point is a particle.
+ * data (e.g. TIME, support_radius). Every point is a particle.
+ *
+ * It reads particle files only. A file that holds more, which this reader would drop, is
+ * refused with an error naming the file and what it holds: cells other than vertices and
+ * poly-vertices (a mesh's tetrahedra, polygons, lines), cell data, or a data set type
+ * other than an unstructured grid or poly data (a structured grid). VTK's and ParaView's own
+ * readers keep all of it. CanReadFile() declines such files, so that ParaView's reader
+ * factory never offers this reader for them.
  *
  * The reader is fluidcast's own (the one `fluidcast info` and `fluidcast render` use). It
  * checks every size a file states against what the file holds before allocating and is as
@@ -61,7 +68,12 @@ public:
   int GetNumberOfTimeSteps() const;
 
   /**
-   * 1 when the file's extension is one this reader takes (.vtu, .vtp, .vtk, .pvd), else 0.
+   * 1 when this reader takes the file: a .vtu, .vtp or legacy .vtk of particles (points,
+   * at most vertex or poly-vertex cells, no cell data), a .pvd whose first time step lists
+   * only such files, or such a file that is damaged (reading it then reports what is
+   * wrong). 0 for a mesh, a structured grid, any other file, or one that does not exist.
+   * It reads the file's XML head and cell types (an appended .vtu/.vtp) or the whole file
+   * (legacy, inline XML).
    */
   static int CanReadFile(const char* fname);
 

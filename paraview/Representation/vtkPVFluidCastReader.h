@@ -49,8 +49,9 @@ public:
   int GetPrefetchedSteps();
 
   /**
-   * 1 when the file's extension is one the reader takes, else 0 (ParaView's reader factory
-   * asks this).
+   * 1 when the reader takes the file: particles only, never a mesh
+   * (vtkFluidCastReader::CanReadFile). ParaView's reader factory asks this, so the reader
+   * is offered for particle files only.
    */
   int CanReadFile(const char* fname);
 

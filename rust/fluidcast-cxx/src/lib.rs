@@ -17,6 +17,7 @@
 //! message. Panics are caught and turned into errors; none crosses the boundary.
 
 mod rbf;
+mod reader;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
@@ -31,6 +32,7 @@ use fluidcast_sph::{
     Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
 use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
+use reader::{particle_reader_claims, read_particle_file, read_series, ParticleFile};
 
 #[cxx::bridge(namespace = "fluidcast")]
 mod ffi {
@@ -159,8 +161,15 @@ mod ffi {
         fn read_series(path: &str) -> Result<Vec<SeriesStep>>;
 
         /// Reads a `.vtu`, `.vtp` or legacy `.vtk` file with every check of `fluidcast
-        /// info`; the error names the file and the problem.
+        /// info`; the error names the file and the problem. A file with cells other than
+        /// vertices or with cell data (a mesh) is refused by name: the reader hands on
+        /// points, vertices, point and field data, and would drop the rest.
         fn read_particle_file(path: &str) -> Result<Box<ParticleFile>>;
+        /// Whether fluidcast's particle reader takes `path` (`vtkFluidCastReader::CanReadFile`):
+        /// a `.vtu`, `.vtp`, legacy `.vtk` or `.pvd` whose data sets (a `.pvd`'s first time's)
+        /// hold particles only, or that is damaged (the reader then says what is wrong).
+        /// Not a mesh, a structured grid, another kind of file or a missing one.
+        fn particle_reader_claims(path: &str) -> bool;
         /// Point coordinates, x y z per point (world space).
         fn points(self: &ParticleFile) -> &[f64];
         /// Number of point-data (`field_data` false) or field-data arrays.
@@ -243,78 +252,6 @@ mod ffi {
 }
 
 pub use ffi::{CameraDesc, RenderInfo, Settings, SurfaceSettings};
-
-/// A data set read from a file, flattened for C++.
-pub struct ParticleFile {
-    points: Vec<f64>,
-    data: Dataset,
-}
-
-fn read_particle_file(path: &str) -> Result<Box<ParticleFile>, String> {
-    guarded("read_particle_file", || {
-        let data = fluidcast_io::read_dataset(path).map_err(|e| e.to_string())?;
-        let points = data.points.iter().flatten().copied().collect();
-        Ok(Box::new(ParticleFile { points, data }))
-    })
-}
-
-fn read_series(path: &str) -> Result<Vec<ffi::SeriesStep>, String> {
-    guarded("read_series", || {
-        let c = fluidcast_io::read_collection(path).map_err(|e| e.to_string())?;
-        let file = |e: &fluidcast_io::CollectionEntry| {
-            e.file.to_str().map(str::to_owned).ok_or_else(|| {
-                format!(
-                    "{path}: the data set file '{}' is not valid UTF-8",
-                    e.file.display()
-                )
-            })
-        };
-        c.steps()
-            .map(|step| {
-                Ok(ffi::SeriesStep {
-                    time: step.first().map_or(0.0, |e| e.timestep),
-                    files: step.iter().map(file).collect::<Result<_, String>>()?,
-                })
-            })
-            .collect()
-    })
-}
-
-impl ParticleFile {
-    fn points(&self) -> &[f64] {
-        &self.points
-    }
-    fn arrays(&self, field_data: bool) -> &[DataArray] {
-        if field_data {
-            &self.data.field_data
-        } else {
-            &self.data.point_data
-        }
-    }
-    fn array_count(&self, field_data: bool) -> usize {
-        self.arrays(field_data).len()
-    }
-    fn array_name(&self, field_data: bool, i: usize) -> &str {
-        self.arrays(field_data)
-            .get(i)
-            .map_or("", |a| a.name.as_str())
-    }
-    fn array_type(&self, field_data: bool, i: usize) -> &str {
-        self.arrays(field_data)
-            .get(i)
-            .map_or("", |a| a.scalar_type.vtk_name())
-    }
-    fn array_components(&self, field_data: bool, i: usize) -> usize {
-        self.arrays(field_data)
-            .get(i)
-            .map_or(0, |a| a.num_components)
-    }
-    fn array_values(&self, field_data: bool, i: usize) -> &[f64] {
-        self.arrays(field_data)
-            .get(i)
-            .map_or(&[], |a| a.values.as_slice())
-    }
-}
 
 /// Particle data, settings and view state behind one `vtkFluidCastVolumeMapper`.
 pub struct Renderer {
@@ -405,11 +342,12 @@ fn empty_dataset(name: &str) -> Dataset {
         point_data: Vec::new(),
         field_data: Vec::new(),
         undecoded: Vec::new(),
+        cells: fluidcast_io::Cells::default(),
     }
 }
 
 /// Runs `f`, turning a panic into an error message.
-fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+pub(crate) fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
     match catch_unwind(AssertUnwindSafe(f)) {
         Ok(r) => r,
         Err(p) => {
