@@ -63,7 +63,8 @@ def read(path: str | Path) -> pv.PolyData:
     ``pyvista.PolyData``.
 
     Raises ``ValueError`` naming the file and the problem for a missing, damaged or lying
-    file."""
+    file, and for a mesh (cells other than vertices, cell data, a structured grid), which
+    this reader would strip to its points: read meshes with ``pyvista.read``."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")

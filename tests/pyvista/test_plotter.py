@@ -225,6 +225,19 @@ def test_damaged_file_raises_naming_it(tmp_path):
         fluidcast.read(damaged)
 
 
+def test_a_mesh_is_refused_not_stripped_to_its_points(tmp_path):
+    """fluidcast.read keeps particles only: a mesh raises, naming the file and its cells,
+    instead of coming back as points without its polygons."""
+    mesh = tmp_path / "sphere.vtp"
+    pv.Sphere().save(mesh)
+    with pytest.raises(ValueError, match=r"sphere\.vtp: holds \d+ cells that are not vertices"):
+        fluidcast.read(mesh)
+    # The same points as particles (one vertex each) are read.
+    points = pv.PolyData(pv.Sphere().points)
+    points.save(tmp_path / "points.vtp")
+    assert fluidcast.read(tmp_path / "points.vtp").n_points == points.n_points
+
+
 def test_mapper_used_directly_reports_a_vtk_error(ddb):
     """Bad data given to the mapper itself (no helper in between) is a VTK error with the
     message at render time, nothing drawn, and the process goes on."""
