@@ -13,8 +13,10 @@
 3. Loads the plugin, checks that ParaView's reader factory now knows the fluidcast reader
    (else the rest would pass without it), and opens every file again: each must give the
    same record. ParaView's readers stay the default, for meshes and particles alike.
-4. The fluidcast reader itself (the factory asked for that reader by name, as the GUI's
-   "Open Data With" list is made): it declines every mesh and takes every particle file.
+4. The fluidcast reader itself (the factory asked for that reader by name) declines every
+   mesh and takes every particle file, and the readers the GUI's File > Open weighs are
+   ParaView's alone for a mesh (no question asked) and ParaView's, then the fluidcast
+   reader, for a particle file (the GUI asks which).
 5. Chosen by name for a mesh, it reads nothing and says why, naming the file and its cells.
 6. The particle files render with the fluidcast representation, through ParaView's reader
    (OpenDataFile) and through the fluidcast reader chosen by name, to the same image.
@@ -202,13 +204,23 @@ for name in files:
         say(f"with the plugin: {name}: as without ({after[name]['reader']}, "
             f"{after[name]['steps'][0]['type']}, {after[name]['steps'][0]['cells']} cells)")
 
-# 4. Which files the fluidcast reader claims (what the GUI offers it for).
+# 4. Which files the fluidcast reader claims, and the readers the GUI's File > Open weighs
+# (vtkSMReaderFactory::GetReaders: with more than one it asks "Open Data With...").
 for name, path in files.items():
     claims = factory.CanReadFile(path, READER[0], READER[1], session)
     expected = name in particles
-    say(f"fluidcast reader {'takes' if claims else 'declines'} {name}")
+    readers = factory.GetReaders(path, session)
+    offered = [readers.GetString(i) for i in range(1, readers.GetLength(), 3)]
+    say(f"fluidcast reader {'takes' if claims else 'declines'} {name}; File > Open weighs "
+        f"{offered}")
     if bool(claims) != expected:
         failures.append(f"{name}: the fluidcast reader {'takes' if claims else 'declines'} it")
+    if name.endswith(".pvtu"):
+        continue  # the fluidcast reader takes no .pvtu by extension
+    paraview_first = offered[:1] == [before[name]["reader"]]
+    if not paraview_first or (READER[1] in offered) != expected:
+        failures.append(f"{name}: File > Open weighs {offered} (expected ParaView's reader "
+                        f"first{', then ' + READER[1] if expected else ' alone'})")
 
 # 5. Chosen by name for a mesh: nothing read, an error naming the file and its cells.
 original_window = vtkOutputWindow.GetInstance()
