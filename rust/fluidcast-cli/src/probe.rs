@@ -26,7 +26,7 @@ pub struct ProbeArgs {
 pub fn run(a: ProbeArgs) -> Result<()> {
     let ds = read_dataset(&a.input)?;
     let p = Particles::from_dataset(&ds, &a.particles.spec()?)?;
-    let text = std::fs::read_to_string(&a.points)
+    let text = fluidcast_mem::read_text(&a.points)
         .with_context(|| format!("reading {}", a.points.display()))?;
     let pts = parse_points(&text).with_context(|| a.points.display().to_string())?;
     let kind = a.particles.field()?;

@@ -232,7 +232,7 @@ impl ViewArgs {
             c.reset(lo.map(f64::from), hi.map(f64::from));
             c
         } else {
-            let text = std::fs::read_to_string(&a.camera)
+            let text = fluidcast_mem::read_text(Path::new(&a.camera))
                 .with_context(|| format!("reading camera file {}", a.camera))?;
             Camera::from_json(&text).with_context(|| a.camera.clone())?
         };
@@ -342,7 +342,7 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
 pub fn load_tf(spec: &str) -> Result<TransferFunction> {
     let p = Path::new(spec);
     if p.extension().map(|e| e.eq_ignore_ascii_case("json")) == Some(true) || p.exists() {
-        let text = std::fs::read_to_string(p)
+        let text = fluidcast_mem::read_text(p)
             .with_context(|| format!("reading transfer function {spec}"))?;
         Ok(TransferFunction::from_paraview_json(&text, spec)?)
     } else {

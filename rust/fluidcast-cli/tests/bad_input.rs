@@ -729,3 +729,22 @@ fn bad_camera_and_tf_files_and_tool_inputs() {
         assert!(!ok && err.contains(want), "{err}");
     }
 }
+
+/// A FIFO with no writer, as the input, as a camera and as a transfer function: an error
+/// naming it, where an open that waited for a writer would hang the command (and this test).
+#[test]
+fn fifos_are_refused_not_waited_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo.vtu");
+    let json = dir.path().join("fifo.json");
+    for p in [&fifo, &json] {
+        assert!(Command::new("mkfifo").arg(p).status().unwrap().success());
+    }
+    let (ok, err) = run(&["info", fifo.to_str().unwrap()]);
+    assert!(!ok && err.contains("fifo.vtu") && err.contains("a FIFO (named pipe)"), "{err}");
+    let sample = fixture("lattice_ascii_none_h64.vtu");
+    for extra in [["--camera", json.to_str().unwrap()], ["--tf", json.to_str().unwrap()]] {
+        let err = render_err(&sample, &extra);
+        assert!(err.contains("fifo.json") && err.contains("a FIFO (named pipe)"), "{err}");
+    }
+}

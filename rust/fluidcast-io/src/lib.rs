@@ -539,20 +539,25 @@ fn extension(path: &Path) -> String {
         .unwrap_or_default()
 }
 
-pub use fluidcast_mem::MAX_STREAM_BYTES;
-
-/// Reads a whole file within the memory budget ([`fluidcast_mem::read_file`]); errors name
-/// the file.
+/// Reads a whole regular file within the memory budget ([`fluidcast_mem::read_file`]); a
+/// FIFO, socket or device is refused without blocking; errors name the file.
 pub fn read_file(path: &Path) -> Result<Vec<u8>, ReadError> {
+    fluidcast_mem::read_file(path).map_err(|e| file_error(path, e))
+}
+
+/// Opens a regular file for reading ([`fluidcast_mem::open_regular`]); errors name it.
+pub(crate) fn open_file(path: &Path) -> Result<std::fs::File, ReadError> {
+    fluidcast_mem::open_regular(path).map_err(|e| file_error(path, e))
+}
+
+fn file_error(path: &Path, e: fluidcast_mem::FileError) -> ReadError {
     use fluidcast_mem::FileError;
-    fluidcast_mem::read_file(path).map_err(|e| {
-        let kind = match e {
-            FileError::Io(io) => ReadErrorKind::Io(io),
-            FileError::Directory => ReadErrorKind::Format(e.to_string()),
-            FileError::TooLarge(m) => ReadErrorKind::TooLarge(m),
-        };
-        ReadError::new(path, kind)
-    })
+    let kind = match e {
+        FileError::Io(io) => ReadErrorKind::Io(io),
+        FileError::Directory | FileError::NotRegular(_) => ReadErrorKind::Format(e.to_string()),
+        FileError::TooLarge(m) => ReadErrorKind::TooLarge(m),
+    };
+    ReadError::new(path, kind)
 }
 
 fn validate(ds: &Dataset) -> Result<(), ReadError> {

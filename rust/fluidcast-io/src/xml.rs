@@ -850,7 +850,7 @@ impl LazyXml {
     /// Opens a regular `.vtu`/`.vtp` file: reads and checks its head and its field data.
     pub fn open(path: &Path) -> Result<LazyXml, ReadError> {
         let err = |k: ReadErrorKind| ReadError::new(path, k);
-        let mut f = File::open(path).map_err(|e| err(e.into()))?;
+        let mut f = crate::open_file(path)?;
         let len = f.metadata().map_err(|e| err(e.into()))?.len();
         let (mut head, tag) = read_head(&mut f, len).map_err(err)?;
         let appended = match &tag {
@@ -918,7 +918,7 @@ impl LazyXml {
     /// unstructured grid, its cell types, decoded now (one byte per cell in the file).
     pub fn cells(&self) -> Result<Cells, ReadError> {
         let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
-        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        let f = crate::open_file(&self.path)?;
         cells_of(self.kind, &self.counts, &self.cell_decls, |d, n| {
             self.decode(d, Some(n), &f)
         })
@@ -1000,7 +1000,7 @@ impl LazyXml {
     /// that the decoded values are not copied once more).
     pub fn points(&self) -> Result<Vec<f64>, ReadError> {
         let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
-        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        let f = crate::open_file(&self.path)?;
         let mut points: Vec<f64> = Vec::new();
         for (i, &n) in self.pieces.iter().enumerate() {
             let d = self
@@ -1038,7 +1038,7 @@ impl LazyXml {
         if !self.point_arrays().iter().any(|(n, _)| n == name) {
             return Ok(None);
         }
-        let f = File::open(&self.path).map_err(|e| err(e.into()))?;
+        let f = crate::open_file(&self.path)?;
         let mut out: Option<DataArray> = None;
         for (d, &n) in decls.into_iter().zip(&self.pieces) {
             let Some(a) = self.decode(d, Some(n), &f).map_err(err)? else {

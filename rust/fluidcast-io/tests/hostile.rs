@@ -324,19 +324,52 @@ fn collections_tell_the_times_that_list_several_data_sets() {
 }
 
 #[test]
-fn devices_and_pipes_are_read_with_a_limit() {
-    if !Path::new("/dev/zero").exists() {
-        return;
-    }
+fn devices_and_pipes_are_refused_without_blocking() {
     let e = read_dataset("/dev/zero").unwrap_err().to_string();
     assert!(e.contains("unsupported file extension"), "{e}");
     let e = fluidcast_io::read_file(Path::new("/dev/zero"))
         .unwrap_err()
         .to_string();
-    assert!(
-        e.contains("not a regular file and longer than 256 MiB"),
-        "{e}"
-    );
+    assert!(e.contains("/dev/zero: is a character device, not a regular file"), "{e}");
+    // FIFOs with no writer, as the file itself, a parallel file's piece and a .pvd's data
+    // set: an open that waited for a writer would hang here.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo.vtu");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success(), "mkfifo failed");
+    let pvtu = dir.path().join("run.pvtu");
+    std::fs::write(
+        &pvtu,
+        r#"<VTKFile type="PUnstructuredGrid" version="0.1"><PUnstructuredGrid GhostLevel="0">
+        <PPoints><PDataArray type="Float32" NumberOfComponents="3"/></PPoints>
+        <Piece Source="fifo.vtu"/></PUnstructuredGrid></VTKFile>"#,
+    )
+    .unwrap();
+    let pvd = dir.path().join("run.pvd");
+    std::fs::write(
+        &pvd,
+        r#"<VTKFile type="Collection"><Collection><DataSet timestep="0" file="fifo.vtu"/>
+        </Collection></VTKFile>"#,
+    )
+    .unwrap();
+    for e in [
+        read_dataset(&fifo).unwrap_err().to_string(),
+        fluidcast_io::open_lazy(&fifo, &fluidcast_io::Arrays::All)
+            .err()
+            .unwrap()
+            .to_string(),
+        read_dataset(&pvtu).unwrap_err().to_string(),
+        fluidcast_io::cells_of(&fifo).unwrap_err().to_string(),
+    ] {
+        assert!(e.contains("fifo.vtu") && e.contains("a FIFO (named pipe)"), "{e}");
+    }
+    let input = fluidcast_io::Input::open(&pvd).unwrap();
+    let frame = input.frames().remove(0);
+    let e = input
+        .read_frame(&frame, &fluidcast_io::Arrays::All)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("a FIFO (named pipe)"), "{e}");
 }
 
 #[test]

@@ -157,10 +157,6 @@ pub fn check(what: impl FnOnce() -> String, needed: u64) -> Result<(), MemError>
     }
 }
 
-/// The most bytes read from something that is not a regular file (a pipe or a device such
-/// as `/dev/zero`), whose length cannot be known in advance.
-pub const MAX_STREAM_BYTES: u64 = 256 << 20;
-
 /// Why a whole file could not be read into memory.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
@@ -168,44 +164,125 @@ pub enum FileError {
     Io(#[from] std::io::Error),
     #[error("is a directory, not a file")]
     Directory,
+    /// A FIFO, socket or device: reading it could wait for a writer forever, or never end.
+    #[error("is {0}, not a regular file (reading it could wait forever): copy the data into a file")]
+    NotRegular(&'static str),
     #[error("too large: {0}")]
     TooLarge(String),
 }
 
-/// Reads a whole file, refusing one that does not fit the memory budget and reading at
-/// most [`MAX_STREAM_BYTES`] from pipes and devices.
-pub fn read_file(path: &std::path::Path) -> Result<Vec<u8>, FileError> {
-    use std::io::Read;
-    let f = std::fs::File::open(path)?;
-    let meta = f.metadata()?;
-    if meta.is_dir() {
+/// What kind of file `t` is, for [`FileError::NotRegular`].
+fn kind_of(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+        if t.is_char_device() {
+            return "a character device";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+    }
+    let _ = t;
+    "not a regular file"
+}
+
+/// Refuses anything but a regular file: a directory, a FIFO, a socket or a device.
+fn check_regular(t: &std::fs::FileType) -> Result<(), FileError> {
+    if t.is_dir() {
         return Err(FileError::Directory);
     }
-    let limit = if meta.is_file() {
-        check(|| "reading this file".into(), meta.len())
-            .map_err(|e| FileError::TooLarge(e.to_string()))?;
-        meta.len()
-    } else {
-        MAX_STREAM_BYTES
-    };
-    let mut bytes = Vec::with_capacity(usize::try_from(limit.min(MAX_STREAM_BYTES)).unwrap_or(0));
-    f.take(limit.saturating_add(1)).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > limit {
-        return Err(FileError::TooLarge(if meta.is_file() {
-            "the file grew while it was being read".into()
-        } else {
-            format!(
-                "not a regular file and longer than {} MiB: copy the data into a file first",
-                MAX_STREAM_BYTES >> 20
-            )
-        }));
+    if !t.is_file() {
+        return Err(FileError::NotRegular(kind_of(t)));
+    }
+    Ok(())
+}
+
+/// Opens `path` for reading when it is a regular file, never blocking: a FIFO, socket or
+/// device is [`FileError::NotRegular`] and a directory [`FileError::Directory`]. The kind is
+/// checked before opening (a FIFO's open waits for a writer; a socket cannot be opened) and
+/// again on the opened file, which is opened non-blocking, so that a file swapped in between
+/// cannot block either.
+pub fn open_regular(path: &std::path::Path) -> Result<std::fs::File, FileError> {
+    check_regular(&std::fs::metadata(path)?.file_type())?;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        options.custom_flags(libc::O_NONBLOCK);
+    }
+    let f = options.open(path)?;
+    check_regular(&f.metadata()?.file_type())?;
+    Ok(f)
+}
+
+/// Reads a whole regular file ([`open_regular`]), refusing one that does not fit the memory
+/// budget.
+pub fn read_file(path: &std::path::Path) -> Result<Vec<u8>, FileError> {
+    use std::io::Read;
+    let f = open_regular(path)?;
+    let len = f.metadata()?.len();
+    check(|| "reading this file".into(), len).map_err(|e| FileError::TooLarge(e.to_string()))?;
+    let mut bytes = Vec::with_capacity(usize::try_from(len).unwrap_or(0));
+    f.take(len.saturating_add(1)).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > len {
+        return Err(FileError::TooLarge(
+            "the file grew while it was being read".into(),
+        ));
     }
     Ok(bytes)
+}
+
+/// Reads a whole regular file as UTF-8 text ([`read_file`]).
+pub fn read_text(path: &std::path::Path) -> Result<String, FileError> {
+    String::from_utf8(read_file(path)?).map_err(|_| {
+        FileError::Io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            "not UTF-8 text",
+        ))
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn only_regular_files_are_read() {
+        let dir = std::env::temp_dir().join(format!("fluidcast_mem_kinds_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("a.txt");
+        std::fs::write(&file, "ok").unwrap();
+        assert_eq!(read_text(&file).unwrap(), "ok");
+        assert!(matches!(read_file(&dir), Err(FileError::Directory)));
+        #[cfg(unix)]
+        {
+            let e = read_file(std::path::Path::new("/dev/zero")).unwrap_err();
+            assert_eq!(
+                e.to_string(),
+                "is a character device, not a regular file (reading it could wait forever): \
+                 copy the data into a file"
+            );
+            // A FIFO with no writer: an open that waited for one would hang this test.
+            let fifo = dir.join("fifo.vtu");
+            let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+            if made.is_ok_and(|s| s.success()) {
+                let e = read_file(&fifo).unwrap_err();
+                assert!(matches!(e, FileError::NotRegular("a FIFO (named pipe)")), "{e}");
+                assert!(open_regular(&fifo).is_err());
+            } else {
+                panic!("mkfifo failed: cannot test FIFOs");
+            }
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn sizes_parse_with_binary_suffixes() {
