@@ -741,10 +741,19 @@ fn fifos_are_refused_not_waited_on() {
         assert!(Command::new("mkfifo").arg(p).status().unwrap().success());
     }
     let (ok, err) = run(&["info", fifo.to_str().unwrap()]);
-    assert!(!ok && err.contains("fifo.vtu") && err.contains("a FIFO (named pipe)"), "{err}");
+    assert!(
+        !ok && err.contains("fifo.vtu") && err.contains("a FIFO (named pipe)"),
+        "{err}"
+    );
     let sample = fixture("lattice_ascii_none_h64.vtu");
-    for extra in [["--camera", json.to_str().unwrap()], ["--tf", json.to_str().unwrap()]] {
+    for extra in [
+        ["--camera", json.to_str().unwrap()],
+        ["--tf", json.to_str().unwrap()],
+    ] {
         let err = render_err(&sample, &extra);
-        assert!(err.contains("fifo.json") && err.contains("a FIFO (named pipe)"), "{err}");
+        assert!(
+            err.contains("fifo.json") && err.contains("a FIFO (named pipe)"),
+            "{err}"
+        );
     }
 }

@@ -330,12 +330,18 @@ fn devices_and_pipes_are_refused_without_blocking() {
     let e = fluidcast_io::read_file(Path::new("/dev/zero"))
         .unwrap_err()
         .to_string();
-    assert!(e.contains("/dev/zero: is a character device, not a regular file"), "{e}");
+    assert!(
+        e.contains("/dev/zero: is a character device, not a regular file"),
+        "{e}"
+    );
     // FIFOs with no writer, as the file itself, a parallel file's piece and a .pvd's data
     // set: an open that waited for a writer would hang here.
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("fifo.vtu");
-    let made = std::process::Command::new("mkfifo").arg(&fifo).status().unwrap();
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap();
     assert!(made.success(), "mkfifo failed");
     let pvtu = dir.path().join("run.pvtu");
     std::fs::write(
@@ -361,7 +367,10 @@ fn devices_and_pipes_are_refused_without_blocking() {
         read_dataset(&pvtu).unwrap_err().to_string(),
         fluidcast_io::cells_of(&fifo).unwrap_err().to_string(),
     ] {
-        assert!(e.contains("fifo.vtu") && e.contains("a FIFO (named pipe)"), "{e}");
+        assert!(
+            e.contains("fifo.vtu") && e.contains("a FIFO (named pipe)"),
+            "{e}"
+        );
     }
     let input = fluidcast_io::Input::open(&pvd).unwrap();
     let frame = input.frames().remove(0);

@@ -165,7 +165,9 @@ pub enum FileError {
     #[error("is a directory, not a file")]
     Directory,
     /// A FIFO, socket or device: reading it could wait for a writer forever, or never end.
-    #[error("is {0}, not a regular file (reading it could wait forever): copy the data into a file")]
+    #[error(
+        "is {0}, not a regular file (reading it could wait forever): copy the data into a file"
+    )]
     NotRegular(&'static str),
     #[error("too large: {0}")]
     TooLarge(String),
@@ -275,7 +277,10 @@ mod tests {
             let made = std::process::Command::new("mkfifo").arg(&fifo).status();
             if made.is_ok_and(|s| s.success()) {
                 let e = read_file(&fifo).unwrap_err();
-                assert!(matches!(e, FileError::NotRegular("a FIFO (named pipe)")), "{e}");
+                assert!(
+                    matches!(e, FileError::NotRegular("a FIFO (named pipe)")),
+                    "{e}"
+                );
                 assert!(open_regular(&fifo).is_err());
             } else {
                 panic!("mkfifo failed: cannot test FIFOs");
