@@ -187,8 +187,53 @@ mod tests {
     fn cell_data_alone_is_dropped_too() {
         let mut c = Cells::default();
         c.add("vertices", 4, true);
+        assert!(c.only_vertices());
         c.add_array("id");
+        assert!(!c.only_vertices());
         assert_eq!(c.dropped().as_deref(), Some("1 cell-data array (id)"));
+    }
+
+    /// Every name against VTK's class for that id (`vtkCellType.h`, `vtkCellTypes`), spaces
+    /// and hyphens dropped: a name that a test of its own would only repeat.
+    #[test]
+    fn cell_type_names_are_vtks() {
+        let vtk = [
+            (1, "Vertex"),
+            (2, "PolyVertex"),
+            (3, "Line"),
+            (4, "PolyLine"),
+            (5, "Triangle"),
+            (6, "TriangleStrip"),
+            (7, "Polygon"),
+            (8, "Pixel"),
+            (9, "Quad"),
+            (10, "Tetra"),
+            (11, "Voxel"),
+            (12, "Hexahedron"),
+            (13, "Wedge"),
+            (14, "Pyramid"),
+            (15, "PentagonalPrism"),
+            (16, "HexagonalPrism"),
+            (21, "QuadraticEdge"),
+            (22, "QuadraticTriangle"),
+            (23, "QuadraticQuad"),
+            (24, "QuadraticTetra"),
+            (25, "QuadraticHexahedron"),
+            (42, "Polyhedron"),
+        ];
+        for (id, class) in vtk {
+            let ours: String = cell_type_name(id)
+                .split([' ', '-'])
+                .map(|w| {
+                    let mut c = w.chars();
+                    c.next()
+                        .map_or(String::new(), |f| f.to_uppercase().chain(c).collect())
+                })
+                .collect();
+            assert_eq!(ours, class, "cell type {id}");
+        }
+        assert_eq!(cell_type_name(0), "empty cells");
+        assert_eq!(cell_type_name(200), "cell type 200");
     }
 
     #[test]
