@@ -301,19 +301,17 @@ vtkFluidCastReader::~vtkFluidCastReader()
 
 int vtkFluidCastReader::CanReadFile(const char* fname)
 {
-  if (!fname)
+  // A .vtu, .vtp, .vtk or .pvd of particles only (fluidcast-cxx decides, extensions and
+  // all): a mesh (cells other than vertices, cell data) or a structured grid is left to
+  // VTK's and ParaView's own readers, which keep what this reader would drop.
+  try
   {
-    return 0;
+    return fname && fluidcast::particle_reader_claims(fname) ? 1 : 0;
   }
-  const std::string s(fname);
-  if (!(HasExtension(s, "vtu") || HasExtension(s, "vtp") || HasExtension(s, "vtk") ||
-        HasExtension(s, "pvd")))
+  catch (const std::exception&)
   {
-    return 0;
+    return 0; // a file name that is not UTF-8 (rust::Str refuses it): not ours to read
   }
-  // Particles only: a mesh (cells other than vertices, cell data) or a structured grid is
-  // left to VTK's and ParaView's own readers, which keep what this reader would drop.
-  return fluidcast::particle_reader_claims(s) ? 1 : 0;
 }
 
 int vtkFluidCastReader::GetNumberOfTimeSteps() const

@@ -12,6 +12,16 @@
 const VTK_VERTEX: u8 = 1;
 const VTK_POLY_VERTEX: u8 = 2;
 
+/// The four cell arrays of poly data: XML `<Verts>`, `<Lines>`, `<Strips>`, `<Polys>`, legacy
+/// `VERTICES`, `LINES`, `TRIANGLE_STRIPS`, `POLYGONS`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum PolyCells {
+    Verts,
+    Lines,
+    Strips,
+    Polys,
+}
+
 /// The cells and cell data of one file (all its pieces).
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Cells {
@@ -28,7 +38,25 @@ impl Cells {
     /// Counts `n` cells of kind `kind`, which a particle read keeps when `vertices`.
     pub fn add(&mut self, kind: &str, n: u64, vertices: bool) {
         self.count = self.count.saturating_add(n);
-        if vertices || n == 0 {
+        if !vertices {
+            self.add_other(kind, n);
+        }
+    }
+
+    /// Counts `n` cells of poly data's array `kind` (vertices are kept by a particle read).
+    pub(crate) fn add_poly(&mut self, kind: PolyCells, n: u64) {
+        let (name, vertices) = match kind {
+            PolyCells::Verts => ("vertices", true),
+            PolyCells::Lines => ("lines", false),
+            PolyCells::Strips => ("triangle strips", false),
+            PolyCells::Polys => ("polygons", false),
+        };
+        self.add(name, n, vertices);
+    }
+
+    /// Adds `n` to the cells of `kind` that are not vertices (already in `count`).
+    fn add_other(&mut self, kind: &str, n: u64) {
+        if n == 0 {
             return;
         }
         match self.other.iter_mut().find(|(k, _)| k == kind) {
@@ -74,9 +102,7 @@ impl Cells {
     pub fn merge(&mut self, other: &Cells) {
         self.count = self.count.saturating_add(other.count);
         for (kind, n) in &other.other {
-            self.add(kind, *n, false);
-            // `add` counted them in `count` again.
-            self.count = self.count.saturating_sub(*n);
+            self.add_other(kind, *n);
         }
         for name in &other.cell_arrays {
             self.add_array(name);

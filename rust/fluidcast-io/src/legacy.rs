@@ -7,11 +7,12 @@
 //! the data-set field data (`FIELD FieldData n` after `DATASET`, e.g. `TIME`); cells
 //! (4.x `CELLS n size` or 5.1 `OFFSETS`/`CONNECTIVITY`), cell data, lookup tables and
 //! `METADATA` blocks are skipped, the cells and cell data counted by kind and name
-//! ([`crate::Cells`], from the cell sections and `CELL_TYPES`). Counts from the file are checked against the bytes
-//! that remain before anything is allocated.
+//! ([`crate::Cells`], from the cell sections and `CELL_TYPES`). Counts from the file are
+//! checked against the bytes that remain before anything is allocated.
 
 use std::path::Path;
 
+use crate::cells::PolyCells;
 use crate::xml::parse_token;
 use crate::{Cells, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
@@ -259,20 +260,23 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<Dataset, ReadError> {
 /// The three header lines and the `DATASET` line; a data set type other than an
 /// unstructured grid or poly data is [`ReadErrorKind::NotParticles`].
 fn parse_header(bytes: &[u8]) -> Result<(DatasetKind, Cursor<'_>), ReadErrorKind> {
-    let mut kind = None;
-    let c = parse_header_lines(bytes, &mut kind).map_err(|m| match kind {
-        Some(false) => ReadErrorKind::NotParticles(m),
-        _ => ReadErrorKind::Format(m),
-    })?;
-    Ok(c)
+    let (at, dataset, c) = parse_header_lines(bytes).map_err(ReadErrorKind::Format)?;
+    let kind = match dataset.as_str() {
+        "UNSTRUCTURED_GRID" => DatasetKind::UnstructuredGrid,
+        "POLYDATA" => DatasetKind::PolyData,
+        o => {
+            return Err(ReadErrorKind::NotParticles(c.msg(
+                at,
+                format!("DATASET {o} is not particle data (only UNSTRUCTURED_GRID and POLYDATA)"),
+            )))
+        }
+    };
+    Ok((kind, c))
 }
 
-/// [`parse_header`]'s lines; `particles` is set to whether the `DATASET` type holds
-/// particles once it has been read.
-fn parse_header_lines<'a>(
-    bytes: &'a [u8],
-    particles: &mut Option<bool>,
-) -> Res<(DatasetKind, Cursor<'a>)> {
+/// [`parse_header`]'s lines: where the `DATASET` line starts, its type (upper case) and the
+/// cursor after it.
+fn parse_header_lines(bytes: &[u8]) -> Res<(usize, String, Cursor<'_>)> {
     let mut c = Cursor {
         b: bytes,
         pos: 0,
@@ -296,19 +300,8 @@ fn parse_header_lines<'a>(
         o => return c.err(at, format!("expected ASCII or BINARY, found '{o}'")),
     };
     let (at, w) = c.header("DATASET", 1)?;
-    let kind = match w.get(1).map(|s| s.to_ascii_uppercase()).as_deref() {
-        Some("UNSTRUCTURED_GRID") => DatasetKind::UnstructuredGrid,
-        Some("POLYDATA") => DatasetKind::PolyData,
-        Some(o) => {
-            *particles = Some(false);
-            return c.err(
-                at,
-                format!("DATASET {o} is not particle data (only UNSTRUCTURED_GRID and POLYDATA)"),
-            );
-        }
-        None => return c.err(at, "DATASET without a type"),
-    };
-    Ok((kind, c))
+    let dataset = w.get(1).map(|s| s.to_ascii_uppercase()).unwrap_or_default();
+    Ok((at, dataset, c))
 }
 
 /// Every section after `DATASET`, keyword by keyword.
@@ -328,16 +321,18 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                 p.points = Some(crate::xyz(&v).collect());
                 c.maybe_metadata();
             }
-            "VERTICES" | "LINES" | "POLYGONS" | "TRIANGLE_STRIPS" | "CELLS" => {
-                let n = skip_cells(&mut c, key)? as u64;
-                // An unstructured grid's cells are counted by their CELL_TYPES.
-                match key.to_ascii_uppercase().as_str() {
-                    "VERTICES" => p.cells.add("vertices", n, true),
-                    "LINES" => p.cells.add("lines", n, false),
-                    "POLYGONS" => p.cells.add("polygons", n, false),
-                    "TRIANGLE_STRIPS" => p.cells.add("triangle strips", n, false),
-                    _ => {}
-                }
+            // An unstructured grid's cells are counted by their CELL_TYPES.
+            "CELLS" => {
+                skip_cells(&mut c, key)?;
+            }
+            k @ ("VERTICES" | "LINES" | "POLYGONS" | "TRIANGLE_STRIPS") => {
+                let kind = match k {
+                    "VERTICES" => PolyCells::Verts,
+                    "LINES" => PolyCells::Lines,
+                    "POLYGONS" => PolyCells::Polys,
+                    _ => PolyCells::Strips,
+                };
+                p.cells.add_poly(kind, skip_cells(&mut c, key)? as u64);
             }
             "CELL_TYPES" => {
                 let (at, w) = c.header("CELL_TYPES", 1)?;

@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 
 use quick_xml::events::{BytesStart, Event};
 
+use crate::cells::PolyCells;
 use crate::payload::{decode_base64, decode_raw_values, Compressor, Ctx};
 use crate::{Arrays, Cells, DataArray, Dataset, DatasetKind, ReadError, ReadErrorKind, ScalarType};
 
@@ -467,7 +468,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
     }
     let ctx = file_ctx(&h.file_attrs).map_err(err)?;
     let counts: Vec<CellCounts> = h.pieces.iter().map(|p| p.counts).collect();
-    let cells = cells_of(h.kind, &counts, &h.decls, |d, n| {
+    let cells = piece_cells(h.kind, &counts, &h.decls, |d, n| {
         read_array(d, Some(n), ctx, appended.as_ref())
     })
     .map_err(err)?;
@@ -526,7 +527,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, arrays: &Arrays) -> Result<Dataset,
 /// The cells of a file's pieces: the counts they declare, each unstructured piece's cell
 /// types (its `types` array, decoded by `types` with the piece's cell count), and the
 /// cell-data arrays' names.
-fn cells_of(
+fn piece_cells(
     kind: DatasetKind,
     counts: &[CellCounts],
     decls: &[ArrayDecl],
@@ -539,10 +540,10 @@ fn cells_of(
     for (i, c) in counts.iter().enumerate() {
         match kind {
             DatasetKind::PolyData => {
-                cells.add("vertices", c.verts as u64, true);
-                cells.add("lines", c.lines as u64, false);
-                cells.add("triangle strips", c.strips as u64, false);
-                cells.add("polygons", c.polys as u64, false);
+                cells.add_poly(PolyCells::Verts, c.verts as u64);
+                cells.add_poly(PolyCells::Lines, c.lines as u64);
+                cells.add_poly(PolyCells::Strips, c.strips as u64);
+                cells.add_poly(PolyCells::Polys, c.polys as u64);
             }
             DatasetKind::UnstructuredGrid if c.cells > 0 => {
                 let decl = decls
@@ -919,7 +920,7 @@ impl LazyXml {
     pub fn cells(&self) -> Result<Cells, ReadError> {
         let err = |k: ReadErrorKind| ReadError::new(&self.path, k);
         let f = crate::open_file(&self.path)?;
-        cells_of(self.kind, &self.counts, &self.cell_decls, |d, n| {
+        piece_cells(self.kind, &self.counts, &self.cell_decls, |d, n| {
             self.decode(d, Some(n), &f)
         })
         .map_err(err)
