@@ -103,14 +103,14 @@ public:
    * by the scalar opacity function at its value (the density map), coloured by
    * RBFClassification "post" (default: blend the values, then colour them) or "pre" (colour
    * each particle, then blend the colours); without an array the density itself is colour
-   * mapped. It is ray marched with blue-noise jitter on the CPU (Backend and ErrorTolerance do
-   * not apply), SamplesPerPixel passes per render; still renders of an unchanged view
+   * mapped. It is ray marched with blue-noise jitter on the Backend's device (ErrorTolerance
+   * does not apply), SamplesPerPixel passes per render; still renders of an unchanged view
    * accumulate passes up to ProgressivePasses (ParaView's OSPRay "Samples Per Pixel" and
    * "Progressive Passes"): render again to refine. With Shadows on, single scattering toward
    * a directional light from world direction LightDirection (0,0,0, the default: from above
    * and behind the camera), a fully shadowed point keeping ShadowAmbient of the light; for
    * the RBF field and the SPH fields alike (an SPH field is then marched the same stochastic
-   * way, with the same passes, on the CPU).
+   * way, with the same passes, on the CPU: the GPU's march sums Gaussians).
    */
   vtkSetStringMacro(Field);
   vtkGetStringMacro(Field);
@@ -216,7 +216,9 @@ public:
    * IsoSurfaceField: "colour" (default: Σ V W with V = m/ρ, about 1 inside the fluid, so 0.5
    * is the free surface), "density" (Σ m W) or a point array's name (its CSPH field).
    * IsoSurfaceOpacity in (0, 1]; IsoSurfaceWithVolume also composites the volume, in depth
-   * order with the surfaces. Surfaces render on the CPU whatever the Backend. In composite
+   * order with the surfaces. Surfaces follow the Backend as in the CLI: with GPU they stop the
+   * adaptive volume on the GPU; otherwise the exact reference ray caster draws them (CPU), with
+   * a note. In composite
    * mode the volume is not shaded (the property's Shade is read for surfaces only; shaded
    * volume rendering is the CLI's and library's --shade-volume for now).
    */

@@ -1,21 +1,41 @@
-//! Where frames render, and the one call that renders them.
+//! fluidcast's one render API: a [`Scene`], a [`RenderPlan`] and [`Renderer::render`].
+//!
+//! Every front-end (the CLI, the VTK mapper and ParaView through the C++ bridge, Python)
+//! builds a [`Scene`] (particles, camera, transfer function) and a [`RenderPlan`] (mode,
+//! field, tolerance and plan switches, tiles, level of detail, the RBF march and its passes)
+//! and calls [`Renderer::render`], which returns a [`Rendered`]: image, statistics, the
+//! device and notes. A feature written here reaches them all.
 //!
 //! A [`Renderer`] is opened once for a [`Backend`] (cpu, gpu or auto) and kept: on the GPU it
-//! holds the wgpu device, its compiled pipelines and the buffers that frames reuse, so a VTK
-//! mapper or a CLI series pays for them once. [`Renderer::render`] runs the adaptive renderer
-//! (Hochstetter et al. 2016) there and returns the same [`Rendered`] (image and statistics)
-//! either way. `auto` takes a hardware GPU when there is one and otherwise renders on the CPU
-//! with a note: a software driver (Mesa's lavapipe or llvmpipe) is slower than the CPU
-//! renderer, so it is used only when asked for (`gpu`, or an adapter by name).
+//! holds the wgpu device, its compiled pipelines and the buffers that frames reuse. A
+//! [`Scene`] keeps what renders of its particles reuse (surface flags, the level-of-detail
+//! hierarchy and cut, the RBF field's BVH, accumulated passes). `auto` takes a hardware GPU
+//! when there is one and otherwise renders on the CPU with a note: a software driver (Mesa's
+//! lavapipe or llvmpipe) is slower than the CPU renderer, so it is used only when asked for
+//! (`gpu`, or an adapter by name).
 
 use std::fmt;
 use std::str::FromStr;
 
+mod frame;
+mod march;
+mod plan;
+mod scene;
+
+pub use frame::{tile_particles, Rendered};
+
+pub use plan::{March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES};
+pub use scene::{LodReport, Scene};
+
 pub use fluidcast_gpu::{list_adapters, AdapterChoice, Gpu, GpuError, ADAPTER_ENV};
-pub use fluidcast_render::Rendered;
-use fluidcast_render::{render_adaptive, render_over_surfaces, RenderError, RenderParams};
-use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
+/// What a plan is made of, from the crates that draw it: front-ends name these here.
+pub use fluidcast_rbf::{
+    AttributeMap, Colouring, RbfError, RbfOptions, DEFAULT_LEAF_SIZE, MAX_LEAF_SIZE,
+};
+pub use fluidcast_render::{
+    crop_to_box, support_depth_extent, GridParams, IsoField, Noise, PlanParams, RbfRenderParams,
+    RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_SIDE, MIN_TILE_BYTES,
+};
 
 /// Where the adaptive renderer runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -65,10 +85,55 @@ pub enum BackendError {
     Gpu(#[from] GpuError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    #[error(transparent)]
+    Rbf(#[from] RbfError),
+    #[error("level of detail: {0}")]
+    Lod(#[from] fluidcast_lod::LodError),
+    #[error("{0}")]
+    Camera(#[from] fluidcast_view::CameraError),
+    /// A plan the renderer cannot draw (a combination not supported yet), said in words;
+    /// `item` says which part of the plan, for a front-end to name its option or property.
+    #[error("{why}")]
+    Refused { item: PlanItem, why: String },
+    /// A state the renderer should never be in (a bug), said in words.
+    #[error("{0}")]
+    Plan(String),
+}
+
+/// A part of a [`RenderPlan`], as a refusal names it ([`BackendError::item`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlanItem {
+    /// [`RenderPlan::mode`].
+    Mode,
+    /// [`RenderPlan::tiles`]: a tile count or memory budget.
+    Tiles,
+    /// [`RenderPlan::lod`].
+    Lod,
+    /// Iso-surfaces or the shaded volume in [`RenderParams`].
+    Surfaces,
+}
+
+impl BackendError {
+    /// Whether a memory budget was too small for even one screen tile.
+    pub fn is_memory_budget(&self) -> bool {
+        matches!(self, BackendError::Render(RenderError::MemoryBudget { .. }))
+    }
+
+    /// The part of the plan that was refused, if one was.
+    pub fn item(&self) -> Option<PlanItem> {
+        match self {
+            BackendError::Refused { item, .. } => Some(*item),
+            e if e.is_memory_budget() => Some(PlanItem::Tiles),
+            BackendError::Lod(_) => Some(PlanItem::Lod),
+            _ => None,
+        }
+    }
 }
 
 /// An opened backend: the CPU, or a GPU device kept for every frame it renders.
 pub struct Renderer {
+    /// The backend asked for (the library's choice of mode depends on it).
+    requested: Backend,
     gpu: Option<Gpu>,
     note: Option<String>,
 }
@@ -77,6 +142,7 @@ impl Renderer {
     /// The CPU renderer.
     pub fn cpu() -> Renderer {
         Renderer {
+            requested: Backend::Cpu,
             gpu: None,
             note: None,
         }
@@ -94,6 +160,7 @@ impl Renderer {
             Backend::Gpu => {
                 let choice = named.unwrap_or(AdapterChoice::Any);
                 Ok(Renderer {
+                    requested: backend,
                     gpu: Some(Gpu::open(&choice)?),
                     note: None,
                 })
@@ -102,60 +169,16 @@ impl Renderer {
                 let choice = named.unwrap_or(AdapterChoice::Hardware);
                 match Gpu::open(&choice) {
                     Ok(g) => Ok(Renderer {
+                        requested: backend,
                         gpu: Some(g),
                         note: None,
                     }),
                     Err(e) => Ok(Renderer {
+                        requested: backend,
                         gpu: None,
                         note: Some(format!("backend auto: {e}; rendering on the CPU")),
                     }),
                 }
-            }
-        }
-    }
-
-    /// Renders one frame with the adaptive renderer, on this backend's device. Iso-surfaces
-    /// (opaque over the volume) are found on the CPU by the reference caster and stop the
-    /// adaptive volume as opaque geometry does ([`render_over_surfaces`]).
-    pub fn render(
-        &self,
-        particles: &Particles,
-        surface: Option<&[bool]>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        params: &RenderParams,
-    ) -> Result<Rendered, BackendError> {
-        if params.surfaces.is_none() {
-            return self.render_volume(particles, surface, camera, tf, params);
-        }
-        let what = match self.gpu {
-            Some(_) => "the GPU backend",
-            None => "the adaptive grid renderer",
-        };
-        let (image, stats) = render_over_surfaces(particles, camera, tf, params, what, |p| {
-            self.render_volume(particles, surface, camera, tf, p)
-                .map(|r| (r.image, r.stats))
-        })?;
-        Ok(Rendered { image, stats })
-    }
-
-    /// The adaptive volume alone, on this backend's device.
-    fn render_volume(
-        &self,
-        particles: &Particles,
-        surface: Option<&[bool]>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        params: &RenderParams,
-    ) -> Result<Rendered, BackendError> {
-        match &self.gpu {
-            Some(g) => Ok(g.render_adaptive(particles, surface, camera, tf, params)?),
-            None => {
-                let r = render_adaptive(particles, surface, camera, tf, params)?;
-                Ok(Rendered {
-                    image: r.image,
-                    stats: r.stats,
-                })
             }
         }
     }
@@ -171,6 +194,11 @@ impl Renderer {
             Some(g) => format!("GPU: {}", g.adapter),
             None => format!("CPU ({} threads)", rayon::current_num_threads()),
         }
+    }
+
+    /// The backend asked for.
+    pub fn backend(&self) -> Backend {
+        self.requested
     }
 
     /// Why `auto` fell back to the CPU, if it did.

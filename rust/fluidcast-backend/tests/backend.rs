@@ -6,6 +6,23 @@ use fluidcast_backend::{list_adapters, Backend, BackendError, GpuError, Renderer
 use fluidcast_render::{render_adaptive, RenderParams};
 use fluidcast_view::{Camera, TransferFunction};
 
+/// The adaptive renderer's frame of `p` on `r`, through the one entry point.
+fn draw(
+    r: &Renderer,
+    p: &fluidcast_sph::Particles,
+    cam: &Camera,
+    tf: &TransferFunction,
+    prm: &RenderParams,
+) -> Result<fluidcast_backend::Rendered, BackendError> {
+    let mut scene = fluidcast_backend::Scene::new(p.clone(), cam.clone(), tf.clone());
+    let plan = fluidcast_backend::RenderPlan {
+        params: prm.clone(),
+        mode: Some(fluidcast_backend::Mode::Adaptive),
+        ..Default::default()
+    };
+    r.render(&mut scene, &plan)
+}
+
 fn scene() -> (
     fluidcast_sph::Particles,
     TransferFunction,
@@ -50,7 +67,7 @@ fn cpu_backend_is_the_cpu_renderer() {
     let r = Renderer::open(Backend::Cpu, None).unwrap();
     assert!(r.gpu().is_none() && r.note().is_none());
     assert!(r.device().starts_with("CPU ("), "{}", r.device());
-    let a = r.render(&p, None, &cam, &tf, &prm).unwrap();
+    let a = draw(&r, &p, &cam, &tf, &prm).unwrap();
     let b = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
     assert_eq!(a.image.rgba, b.image.rgba);
     assert_eq!(a.stats.samples, b.stats.samples);
@@ -92,8 +109,8 @@ fn gpu_backend_renders_what_the_cpu_renders_and_adapters_go_by_name() {
         Err(e) => panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}"),
     };
     let (p, tf, cam, prm) = scene();
-    let g = r.render(&p, None, &cam, &tf, &prm).unwrap();
-    let c = Renderer::cpu().render(&p, None, &cam, &tf, &prm).unwrap();
+    let g = draw(&r, &p, &cam, &tf, &prm).unwrap();
+    let c = draw(&Renderer::cpu(), &p, &cam, &tf, &prm).unwrap();
     let (cmp, _) = fluidcast_image::compare(&c.image, &g.image, 1e-3).unwrap();
     assert!(cmp.max_abs <= 1e-3, "GPU vs CPU max abs {}", cmp.max_abs);
     assert!(r.device().starts_with("GPU: "), "{}", r.device());
@@ -150,9 +167,7 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
         want.depth.iter().filter(|z| z.is_finite()).count() > 300,
         "surfaces shown"
     );
-    let got = cpu
-        .render(&p, None, &cam, &tf, &with(true, 1.0, None))
-        .unwrap();
+    let got = draw(&cpu, &p, &cam, &tf, &with(true, 1.0, None)).unwrap();
     let min_t = prm.min_transmittance as f32;
     let (c, _) = fluidcast_image::compare(&want, &got.image, 1e-5).unwrap();
     assert!(
@@ -175,7 +190,7 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
     assert!(got.stats.stage("surfaces").is_some() && got.stats.plan.is_some());
     let mut strict = with(true, 1.0, Some(0.004));
     strict.adaptive = strict.adaptive.strict();
-    let adapted = cpu.render(&p, None, &cam, &tf, &strict).unwrap();
+    let adapted = draw(&cpu, &p, &cam, &tf, &strict).unwrap();
     let (c, _) = fluidcast_image::compare(&want, &adapted.image, 0.004).unwrap();
     assert!(
         c.max_abs <= 0.004 + min_t as f64 + 1e-6,
@@ -183,12 +198,10 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
         c.max_abs
     );
     let only = with(false, 1.0, None);
-    let a = cpu.render(&p, None, &cam, &tf, &only).unwrap();
+    let a = draw(&cpu, &p, &cam, &tf, &only).unwrap();
     let b = render_reference(&p, &cam, &tf, &only).unwrap().0;
     assert_eq!(a.image.rgba, b.rgba);
-    let e = cpu
-        .render(&p, None, &cam, &tf, &with(true, 0.5, None))
-        .unwrap_err();
+    let e = draw(&cpu, &p, &cam, &tf, &with(true, 0.5, None)).unwrap_err();
     assert!(
         e.to_string()
             .contains("opaque surfaces over the volume only"),
@@ -196,9 +209,7 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
     );
     match Renderer::open(Backend::Gpu, None) {
         Ok(gpu) => {
-            let g = gpu
-                .render(&p, None, &cam, &tf, &with(true, 1.0, None))
-                .unwrap();
+            let g = draw(&gpu, &p, &cam, &tf, &with(true, 1.0, None)).unwrap();
             let (c, _) = fluidcast_image::compare(&got.image, &g.image, 1e-3).unwrap();
             assert!(c.max_abs <= 1e-3, "GPU vs CPU with surfaces: {}", c.max_abs);
         }

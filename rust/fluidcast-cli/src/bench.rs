@@ -217,7 +217,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // With a GPU, every adaptive render is repeated on it and reported in a second table.
     let mut sampling = a.sampling.clone();
     sampling.mode = Some(crate::view::Mode::Adaptive);
-    let backend = crate::render::open_backend(&sampling, crate::view::Mode::Adaptive)?;
+    let backend = crate::render::open_backend(&sampling, fluidcast_backend::Mode::Adaptive)?;
     let gpu = backend.gpu();
     let Setup {
         base,

@@ -1,14 +1,11 @@
-//! `--field rbf`: the attribute-aware RBF field of Morrical et al. 2023, its options and one
-//! frame's build and render.
-
-use std::time::Instant;
+//! `--field rbf` and `--shadows`: the options of the stochastic ray march (the
+//! attribute-aware RBF field of Morrical et al. 2023), as the library's plan takes them.
 
 use anyhow::{bail, Context, Result};
-use fluidcast_image::Image;
-use fluidcast_rbf::{AttributeMap, Colouring, RbfField, RbfOptions, DEFAULT_LEAF_SIZE};
-use fluidcast_render::{render_rbf, Noise, RbfRenderParams, RbfShadows, RenderParams, RenderStats};
-use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_backend::{
+    AttributeMap, Colouring, Noise, RbfOptions, RbfRenderParams, RbfShadows, DEFAULT_LEAF_SIZE,
+};
+use fluidcast_view::Camera;
 
 /// How attributes colour the RBF field.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
@@ -147,64 +144,4 @@ fn parse_vector(s: &str) -> Result<[f64; 3]> {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
         _ => bail!("'{s}': expected X,Y,Z, three finite numbers"),
     }
-}
-
-/// What the stochastic ray marcher draws.
-pub enum Marched {
-    /// The RBF field with these options.
-    Rbf(RbfOptions),
-    /// The SPH field the render parameters name (kernel, field), lit with --shadows.
-    Sph,
-}
-
-/// Builds one frame's field (a new BVH: particles move between time steps), and for a
-/// density field without `--range` sets the colour map's range to the largest Φ at a sample
-/// of particle centres; then renders it. The build and, with `refit`, one refit of the tree
-/// are timed as stages `bvh` and `refit`.
-pub fn render_frame(
-    particles: &Particles,
-    camera: &Camera,
-    tf: &mut TransferFunction,
-    params: &RenderParams,
-    (marched, rbf, auto_range): (&Marched, &RbfRenderParams, bool),
-    (refit, gpu): (bool, Option<&fluidcast_backend::Gpu>),
-) -> Result<(Image, RenderStats, usize)> {
-    let t = Instant::now();
-    let mut field = match marched {
-        Marched::Rbf(opts) => RbfField::build(particles, tf, opts)?,
-        Marched::Sph => {
-            RbfField::from_sph(particles, params.kernel, params.field, DEFAULT_LEAF_SIZE)?
-        }
-    };
-    let build_ms = t.elapsed().as_secs_f64() * 1e3;
-    let mut stages = vec![("bvh", build_ms)];
-    let Marched::Rbf(opts) = marched else {
-        // SPH fields are marched on the CPU (the GPU's shader sums Gaussians).
-        let (image, mut stats) = render_rbf(&field, camera, tf, params, rbf)?;
-        stats.stages.splice(0..0, stages);
-        return Ok((image, stats, field.memory_bytes()));
-    };
-    if refit {
-        let t = Instant::now();
-        field.set_radius_map(&opts.radius_map)?;
-        stages.push(("refit", t.elapsed().as_secs_f64() * 1e3));
-    }
-    if auto_range && opts.colouring == Colouring::Density {
-        let step = (particles.len() / 2000).max(1);
-        let top = particles
-            .positions
-            .iter()
-            .step_by(step)
-            .map(|p| field.sample(p.map(f64::from)).density)
-            .fold(0.0, f64::max);
-        *tf = tf
-            .clone()
-            .with_range(0.0, if top > 0.0 { top } else { 1.0 })?;
-    }
-    let (image, mut stats) = match gpu {
-        Some(g) => g.render_rbf(&field, camera, tf, params, rbf)?,
-        None => render_rbf(&field, camera, tf, params, rbf)?,
-    };
-    stats.stages.splice(0..0, stages);
-    Ok((image, stats, field.memory_bytes()))
 }

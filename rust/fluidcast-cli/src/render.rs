@@ -3,21 +3,19 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use fluidcast_backend::{
+    Backend, March, Marched, Mode, RenderPlan, RenderStats, Rendered, Renderer, Scene, Tiles,
+};
 use fluidcast_image::Image;
 use fluidcast_io::{Arrays, Frame, Input};
-use fluidcast_render::{
-    render_in_tiles, render_perspective_grid, render_reference, RenderParams, RenderStats,
-};
 use fluidcast_sph::{ParticleSpec, Particles};
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_view::Camera;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
 use crate::options::ParticleArgs;
-use crate::rbf::Marched;
 use crate::surface::{IsoSource, SurfaceArgs};
-use crate::view::{Mode, SamplingArgs, ViewArgs};
-use fluidcast_backend::{Backend, Renderer};
+use crate::view::{SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -97,84 +95,48 @@ fn parse_memory_limit(s: &str) -> Result<u64, String> {
 }
 
 impl SplitArgs {
-    /// The most particles a screen tile of a view of `particles` may hold at `width ×
-    /// height`: from `--tiles` and from `--memory-limit` (beside what the process holds now),
-    /// the smaller; `None`: one render.
-    pub fn max_tile_particles(
-        &self,
-        particles: &Particles,
-        width: u32,
-        height: u32,
-    ) -> Result<Option<usize>> {
-        let n = particles.len().max(1);
-        let by_count = self.tiles.map(|t| n.div_ceil(t as usize));
+    /// The plan's screen tiles: `--tiles`, and `--memory-limit` less what the process holds
+    /// now.
+    pub fn tiles(&self) -> Result<Tiles> {
         let Some(limit) = self.memory_limit else {
-            return Ok(by_count);
+            return Ok(Tiles {
+                count: self.tiles,
+                budget_bytes: None,
+            });
         };
         let Some(held) = fluidcast_mem::resident() else {
             bail!("--memory-limit needs the process' memory use, which this system does not report (/proc/self/status); use --tiles");
         };
-        let by_memory =
-            fluidcast_render::tile_particles_within(n, width, height, limit.saturating_sub(held))
-                .with_context(|| {
-                    format!(
-                "--memory-limit {}: the particles and what the process holds already take {}; \
-                 raise the limit",
-                fluidcast_mem::Bytes(limit),
-                fluidcast_mem::Bytes(held)
-            )
-                })?
-                .unwrap_or(n);
-        Ok(Some(by_count.map_or(by_memory, |c| c.min(by_memory))).filter(|&m| m < n))
+        Ok(Tiles {
+            count: self.tiles,
+            budget_bytes: Some(limit.saturating_sub(held)),
+        })
     }
-}
 
-/// Renders one frame with the chosen renderer: the reference renderer, the perspective grid
-/// (`cell` pixels per column), or the adaptive one on the opened backend.
-pub fn render_frame(
-    particles: &Particles,
-    surface: Option<&[bool]>,
-    camera: &Camera,
-    tf: &TransferFunction,
-    params: &RenderParams,
-    (mode, cell, tiles): (Mode, u32, Option<usize>),
-    renderer: &Renderer,
-) -> Result<(Image, RenderStats)> {
-    if let Some(max) = tiles {
-        // The perspective grid's pixels read neighbouring columns: a tile also needs the
-        // particles around it.
-        let margin = if mode == Mode::PerspectiveGrid {
-            fluidcast_render::tile_margin(cell)
-        } else {
-            0
-        };
-        return render_in_tiles(
-            particles,
-            surface,
-            camera,
-            params,
-            (max, margin),
-            |p, s, prm| render_frame(p, s, camera, tf, prm, (mode, cell, None), renderer),
-        );
-    }
-    Ok(match mode {
-        Mode::Reference => render_reference(particles, camera, tf, params)?,
-        Mode::PerspectiveGrid => render_perspective_grid(particles, camera, tf, params, cell)?,
-        Mode::Adaptive => {
-            let r = renderer.render(particles, surface, camera, tf, params)?;
-            (r.image, r.stats)
+    /// `e` (a render's error) with what `--memory-limit` had to do with it.
+    fn explain(&self, e: fluidcast_backend::BackendError) -> anyhow::Error {
+        match (self.memory_limit, fluidcast_mem::resident()) {
+            (Some(limit), Some(held)) if e.is_memory_budget() => {
+                anyhow::Error::new(e).context(format!(
+                    "--memory-limit {}: the particles and what the process holds already take {}; \
+                 raise the limit",
+                    fluidcast_mem::Bytes(limit),
+                    fluidcast_mem::Bytes(held)
+                ))
+            }
+            _ => e.into(),
         }
-    })
+    }
 }
 
 /// Opens the backend for the adaptive renderer (the reference renderer runs on the CPU), and
 /// says where frames render.
 pub fn open_backend(s: &SamplingArgs, mode: Mode) -> Result<Renderer> {
     let r = match (s.backend, mode) {
-        (Backend::Gpu, Mode::Reference | Mode::PerspectiveGrid) => {
+        (Backend::Gpu, Mode::Reference | Mode::PerspectiveGrid { .. }) => {
             bail!("--backend gpu renders the adaptive mode only (drop --mode)")
         }
-        (_, Mode::Reference | Mode::PerspectiveGrid) => Renderer::cpu(),
+        (_, Mode::Reference | Mode::PerspectiveGrid { .. }) => Renderer::cpu(),
         (b, Mode::Adaptive) => without_wayland_noise(|| Renderer::open(b, s.adapter.as_deref()))
             .with_context(|| format!("--backend {b}"))?,
     };
@@ -571,13 +533,222 @@ fn rbf_setup(a: &RenderArgs) -> Result<Option<Marched>> {
     )))
 }
 
-pub fn run(a: RenderArgs) -> Result<()> {
-    let background = parse_background(&a.background)?;
-    let png_encoding = if a.srgb {
-        fluidcast_image::PngEncoding::Srgb
-    } else {
-        fluidcast_image::PngEncoding::Vtk
+/// The plan every frame starts from, and the backend it needs; says what the library
+/// chose for the options.
+fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
+    let mut params = a.sampling.params(&a.view, &a.particles)?;
+    let array = a.particles.array.as_deref();
+    params.surfaces = a.surface.surfaces(array, None)?; // the options' own errors, before reading
+    params.volume_lighting = a.surface.volume_lighting()?;
+    if a.surface.shade_volume && a.sampling.backend == Backend::Gpu {
+        bail!("--shade-volume: the GPU backend does not draw a shaded volume yet; drop --backend gpu (it renders on the CPU)");
+    }
+    let march = rbf_setup(a)?;
+    if a.lod.is_some() && march.is_some() {
+        bail!("--lod: the RBF field (--field rbf) has its own cluster hierarchy; drop --lod");
+    }
+    let plan = RenderPlan {
+        params,
+        mode: a.sampling.plan_mode(),
+        tiles: Tiles::default(),
+        lod: a.lod,
+        march: None,
     };
+    let (mode, note) = plan.mode_for(a.sampling.backend);
+    if let (Some(n), None) = (note, &march) {
+        let what = if a.surface.on() {
+            "--iso"
+        } else {
+            "--shade-volume"
+        };
+        eprintln!("note: {what}: {n} (--mode reference)");
+    }
+    // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
+    let mode = if march.is_some() {
+        Mode::Adaptive
+    } else {
+        mode
+    };
+    let renderer = open_backend(&a.sampling, mode)?;
+    let plan = RenderPlan {
+        march: march.map(|field| March {
+            field,
+            params: Default::default(),
+            progressive_passes: 0,
+            time_refit: a.stats.is_some(),
+        }),
+        ..plan
+    };
+    Ok((plan, renderer))
+}
+
+/// What stays from frame to frame of one `fluidcast render`.
+struct Job<'a> {
+    a: &'a RenderArgs,
+    all: &'a [Frame],
+    plan: RenderPlan,
+    renderer: Renderer,
+    /// Camera and transfer function, fixed from the first frame for a whole series.
+    view: Option<(Camera, fluidcast_view::TransferFunction)>,
+    progress: Option<ProgressBar>,
+    stats: Vec<serde_json::Value>,
+    several: bool,
+}
+
+impl Job<'_> {
+    /// The scene of one loaded frame; the first sets the camera and transfer function.
+    fn scene(&mut self, particles: Particles) -> Result<Scene> {
+        let (camera, tf) = match self.view.take() {
+            Some(v) => v,
+            None => {
+                print_notes(&particles.notes);
+                let base = self.a.view.base_tf()?;
+                let quiet = self.progress.is_none();
+                self.a
+                    .view
+                    .setup(&particles, &self.plan.params, &base, quiet)?
+            }
+        };
+        Ok(Scene::new(particles, camera, tf))
+    }
+
+    /// The plan of one frame: its iso-surface values, and the march's passes and light
+    /// from the camera.
+    fn frame_plan(&self, scene: &Scene, iso: Option<Arc<[f32]>>) -> Result<RenderPlan> {
+        let a = self.a;
+        if a.lod.is_some() && iso.is_some() {
+            bail!("--lod: iso-surfaces of another array (--iso-field) are not merged into the hierarchy; drop --lod or draw the surfaces of the rendered array");
+        }
+        let mut plan = self.plan.clone();
+        plan.params.surfaces = a.surface.surfaces(a.particles.array.as_deref(), iso)?;
+        if let Some(m) = &mut plan.march {
+            m.params = a
+                .rbf
+                .render_params(&scene.camera, a.surface.light.as_deref())?;
+            m.progressive_passes = m.params.spp;
+        }
+        if plan.march.is_none() {
+            plan.tiles = a.split.tiles()?;
+        }
+        Ok(plan)
+    }
+
+    /// Renders one loaded frame and writes it.
+    fn frame(&mut self, loaded: Loaded) -> Result<()> {
+        let a = self.a;
+        let first = self.view.is_none();
+        let (time, file) = &self.all[loaded.index];
+        let mut scene = self.scene(loaded.particles)?;
+        let plan = self.frame_plan(&scene, loaded.iso_values)?;
+        let density_rbf = plan.march.as_ref().is_some_and(|m| {
+            matches!(&m.field, Marched::Rbf(o) if o.colouring == fluidcast_backend::Colouring::Density)
+        });
+        if first && density_rbf && !a.view.has_range() {
+            let (lo, hi) = self
+                .renderer
+                .rbf_density_range(&mut scene, &plan)
+                .with_context(|| format!("rendering {}", file.display()))?;
+            scene.tf = scene.tf.clone().with_range(lo, hi)?;
+        }
+        let r = self
+            .renderer
+            .render(&mut scene, &plan)
+            .map_err(|e| a.split.explain(e))
+            .with_context(|| format!("rendering {}", file.display()))?;
+        if let (Some(l), None) = (&r.lod, &self.progress) {
+            eprintln!("{}", l.line());
+        }
+        self.write(
+            r,
+            loaded.index,
+            (loaded.read_ms, loaded.prep_ms),
+            (*time, file),
+        )?;
+        self.view = Some((scene.camera, scene.tf));
+        Ok(())
+    }
+
+    /// Writes frame `fi`'s image (and AOVs) and keeps its statistics.
+    fn write(
+        &mut self,
+        r: Rendered,
+        fi: usize,
+        (read_ms, prep_ms): (f64, f64),
+        (time, file): (Option<f64>, &PathBuf),
+    ) -> Result<()> {
+        let a = self.a;
+        let Rendered {
+            image, mut stats, ..
+        } = r;
+        stats.stages.insert(0, ("read", read_ms));
+        stats.stages.insert(1, ("particles", prep_ms));
+        let out = if self.several || a.output.to_string_lossy().contains('%') {
+            frame_path(&a.output, fi)?
+        } else {
+            a.output.clone()
+        };
+        let t_write = Instant::now();
+        let encoding = if a.srgb {
+            fluidcast_image::PngEncoding::Srgb
+        } else {
+            fluidcast_image::PngEncoding::Vtk
+        };
+        image
+            .save(&out, parse_background(&a.background)?, encoding)
+            .with_context(|| format!("writing {}", out.display()))?;
+        if a.aovs {
+            write_aov_pngs(&image, &out, self.plan.params.adaptive.tolerance)?;
+        }
+        stats
+            .stages
+            .push(("write", t_write.elapsed().as_secs_f64() * 1e3));
+        let mut js = stats_json(&stats, file, time);
+        if let Some(b) = r.march_bytes {
+            js["rbf_memory_bytes"] = json!(b);
+        }
+        if let Some(l) = &r.lod {
+            js["lod"] = crate::lod::json(l);
+        }
+        self.stats.push(js);
+        match &self.progress {
+            Some(pb) => pb.inc(1),
+            None => report_frame(&out, &stats),
+        }
+        Ok(())
+    }
+
+    /// The series' summary line and the `--stats` file.
+    fn finish(mut self, frames: usize, seconds: f64) -> Result<()> {
+        if frames > 1 {
+            eprintln!(
+                "{frames} frames in {seconds:.2} s: {:.2} frames/s ({})",
+                frames as f64 / seconds,
+                if self.a.no_prefetch {
+                    "frames read in turn, --no-prefetch"
+                } else {
+                    "each frame read while the one before rendered"
+                }
+            );
+        }
+        if let Some(pb) = &self.progress {
+            pb.finish_with_message("done");
+        }
+        if let Some(p) = &self.a.stats {
+            let v = if self.stats.len() == 1 {
+                self.stats.pop().unwrap_or_default()
+            } else {
+                serde_json::Value::Array(self.stats)
+            };
+            std::fs::write(p, serde_json::to_string_pretty(&v)?)
+                .with_context(|| format!("writing {}", p.display()))?;
+            eprintln!("stats: {}", p.display());
+        }
+        Ok(())
+    }
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    parse_background(&a.background)?;
     let input = Input::open(&a.input)?;
     if let Input::Series(c) = &input {
         note_shared_times(c);
@@ -585,161 +756,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let all = input.frames();
     let frames = select_frames(&a, &input, all.len())?;
     let spec = a.particles.spec()?;
-    let mut params = a.sampling.params(&a.view, &a.particles)?;
-    let array = a.particles.array.as_deref();
-    a.surface.surfaces(array, None)?; // the options' own errors, before reading
-    params.volume_lighting = a.surface.volume_lighting()?;
-    let gpu = a.sampling.backend == Backend::Gpu;
-    if a.surface.shade_volume && gpu {
-        bail!("--shade-volume: the GPU backend does not draw a shaded volume yet; drop --backend gpu (it renders on the CPU)");
-    }
-    // Surfaces and the shaded volume render with the reference caster unless --mode (or
-    // --backend gpu, whose adaptive volume the surfaces then stop) says otherwise.
-    let lit = (a.surface.on() && !gpu) || a.surface.shade_volume;
-    let mode = a.sampling.mode(lit);
-    if lit && a.sampling.mode.is_none() {
-        let what = if a.surface.on() {
-            "--iso"
-        } else {
-            "--shade-volume"
-        };
-        eprintln!("note: {what}: rendering with the reference ray caster (--mode reference: exact, and it composites translucent surfaces with the volume)");
-    }
-    let rbf = rbf_setup(&a)?;
-    if a.lod.is_some() && rbf.is_some() {
-        bail!("--lod: the RBF field (--field rbf) has its own cluster hierarchy; drop --lod");
-    }
-    // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
-    let mode = if rbf.is_some() { Mode::Adaptive } else { mode };
+    let (plan, renderer) = base_plan(&a)?;
     let recipe = Recipe {
         spec: &spec,
         surface: &a.surface,
-        array,
+        array: a.particles.array.as_deref(),
     };
-    let base_tf = a.view.base_tf()?;
-    let mut tf = base_tf.clone();
-
-    let progress = (frames.len() > 1).then(|| progress_bar(frames.len(), "frames"));
-    let renderer = open_backend(&a.sampling, mode)?;
-    let mut camera: Option<Camera> = None;
-    let mut all_stats = Vec::new();
+    let mut job = Job {
+        a: &a,
+        all: &all,
+        plan,
+        renderer,
+        view: None,
+        progress: (frames.len() > 1).then(|| progress_bar(frames.len(), "frames")),
+        stats: Vec::new(),
+        several: frames.len() > 1,
+    };
     let started = Instant::now();
-    let prefetch = !a.no_prefetch;
-    for_each_frame(&input, &all, &frames, &recipe, prefetch, |frame| {
-        let Loaded {
-            index: fi,
-            particles,
-            iso_values,
-            read_ms,
-            prep_ms,
-        } = frame;
-        let (time, file) = &all[fi];
-        let first = camera.is_none();
-        // Camera, range and opacity unit are fixed from the first frame for a whole series.
-        let cam = match &camera {
-            Some(c) => c,
-            None => {
-                print_notes(&particles.notes);
-                let (cam, t) = a
-                    .view
-                    .setup(&particles, &params, &base_tf, progress.is_none())?;
-                tf = t;
-                camera.insert(cam)
-            }
-        };
-        let (particles, lod) = match a.lod {
-            Some(tol) => {
-                if iso_values.is_some() {
-                    bail!("--lod: iso-surfaces of another array (--iso-field) are not merged into the hierarchy; drop --lod or draw the surfaces of the rendered array");
-                }
-                let (h, build_ms) = crate::lod::build(particles)?;
-                let size = (params.width, params.height);
-                let (p, r) = crate::lod::cut(&h, cam, size, tol, build_ms)?;
-                if progress.is_none() {
-                    eprintln!("{}", r.line());
-                }
-                (p, Some(r))
-            }
-            None => (particles, None),
-        };
-        params.surfaces = a.surface.surfaces(array, iso_values)?;
-        let tiles = a
-            .split
-            .max_tile_particles(&particles, params.width, params.height)?;
-        let how = (mode, a.sampling.grid_cell, tiles);
-        let mut rbf_bytes = None;
-        let (image, mut stats) = match &rbf {
-            Some(marched) => {
-                let auto_range = first && !a.view.has_range();
-                let rp = a.rbf.render_params(cam, a.surface.light.as_deref())?;
-                let how = (marched, &rp, auto_range);
-                let refit = a.stats.is_some();
-                let on = renderer.gpu();
-                let (image, stats, bytes) =
-                    crate::rbf::render_frame(&particles, cam, &mut tf, &params, how, (refit, on))
-                        .with_context(|| format!("rendering {}", file.display()))?;
-                rbf_bytes = Some(bytes);
-                (image, stats)
-            }
-            None => render_frame(&particles, None, cam, &tf, &params, how, &renderer)
-                .with_context(|| format!("rendering {}", file.display()))?,
-        };
-        stats.stages.insert(0, ("read", read_ms));
-        stats.stages.insert(1, ("particles", prep_ms));
-        let out = if frames.len() > 1 || a.output.to_string_lossy().contains('%') {
-            frame_path(&a.output, fi)?
-        } else {
-            a.output.clone()
-        };
-        let t_write = Instant::now();
-        image
-            .save(&out, background, png_encoding)
-            .with_context(|| format!("writing {}", out.display()))?;
-        if a.aovs {
-            write_aov_pngs(&image, &out, params.adaptive.tolerance)?;
-        }
-        stats
-            .stages
-            .push(("write", t_write.elapsed().as_secs_f64() * 1e3));
-        let mut js = stats_json(&stats, file, *time);
-        if let Some(b) = rbf_bytes {
-            js["rbf_memory_bytes"] = json!(b);
-        }
-        if let Some(r) = &lod {
-            js["lod"] = r.json();
-        }
-        all_stats.push(js);
-        match &progress {
-            Some(pb) => pb.inc(1),
-            None => report_frame(&out, &stats),
-        }
-        Ok(())
+    for_each_frame(&input, &all, &frames, &recipe, !a.no_prefetch, |f| {
+        job.frame(f)
     })?;
-    if frames.len() > 1 {
-        let s = started.elapsed().as_secs_f64();
-        eprintln!(
-            "{} frames in {s:.2} s: {:.2} frames/s ({})",
-            frames.len(),
-            frames.len() as f64 / s,
-            if prefetch {
-                "each frame read while the one before rendered"
-            } else {
-                "frames read in turn, --no-prefetch"
-            }
-        );
-    }
-    if let Some(pb) = progress {
-        pb.finish_with_message("done");
-    }
-    if let Some(p) = &a.stats {
-        let v = if all_stats.len() == 1 {
-            all_stats.pop().unwrap_or_default()
-        } else {
-            serde_json::Value::Array(all_stats)
-        };
-        std::fs::write(p, serde_json::to_string_pretty(&v)?)
-            .with_context(|| format!("writing {}", p.display()))?;
-        eprintln!("stats: {}", p.display());
-    }
-    Ok(())
+    job.finish(frames.len(), started.elapsed().as_secs_f64())
 }

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_render::{IsoField, Surfaces};
+use fluidcast_backend::{IsoField, Surfaces};
 use fluidcast_sph::{ParticleSource, Particles, Quantity};
 use fluidcast_view::{Light, Lighting};
 

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use fluidcast_render::{GridParams, PlanParams, RenderParams};
+use fluidcast_backend::{GridParams, PlanParams, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -140,13 +140,15 @@ pub fn parse_tolerance(s: &str) -> Result<Option<f64>> {
 }
 
 impl SamplingArgs {
-    /// The renderer --mode names, else adaptive, or reference when surfaces are drawn.
-    pub fn mode(&self, surfaces: bool) -> Mode {
-        match self.mode {
-            Some(m) => m,
-            None if surfaces => Mode::Reference,
-            None => Mode::Adaptive,
-        }
+    /// The mode --mode names (`None`: the library's choice).
+    pub fn plan_mode(&self) -> Option<fluidcast_backend::Mode> {
+        self.mode.map(|m| match m {
+            Mode::Adaptive => fluidcast_backend::Mode::Adaptive,
+            Mode::Reference => fluidcast_backend::Mode::Reference,
+            Mode::PerspectiveGrid => fluidcast_backend::Mode::PerspectiveGrid {
+                cell: self.grid_cell,
+            },
+        })
     }
 
     /// Render parameters for an image size and the particle options.
@@ -328,12 +330,12 @@ pub fn parse_size(s: &str) -> Result<(u32, u32)> {
     let h: u64 = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
     if w == 0
         || h == 0
-        || w > fluidcast_render::MAX_SIDE as u64
-        || h > fluidcast_render::MAX_SIDE as u64
+        || w > fluidcast_backend::MAX_SIDE as u64
+        || h > fluidcast_backend::MAX_SIDE as u64
     {
         bail!(
             "--size {w}x{h}: each side must be 1..={} pixels",
-            fluidcast_render::MAX_SIDE
+            fluidcast_backend::MAX_SIDE
         );
     }
     Ok((w as u32, h as u32))

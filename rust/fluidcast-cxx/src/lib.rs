@@ -16,7 +16,7 @@
 //! Every entry point returns `Result`: C++ sees a `rust::Error` exception carrying the
 //! message. Panics are caught and turned into errors; none crosses the boundary.
 
-mod rbf;
+mod plan;
 mod reader;
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -24,14 +24,13 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use fluidcast_backend::{Backend, BackendError};
+use fluidcast_backend::{Backend, IsoField, Rendered, Scene, Surfaces};
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
-use fluidcast_lod::LodHierarchy;
-use fluidcast_render::{IsoField, PlanParams, RenderParams, Surfaces, SURFACE_THRESHOLD};
 use fluidcast_sph::{
-    Component, FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
+    Component, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
 use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
+use plan::plan_of;
 use reader::{particle_reader_claims, read_particle_file, read_series, ParticleFile};
 
 #[cxx::bridge(namespace = "fluidcast")]
@@ -298,27 +297,11 @@ fn backend_of(index: i32) -> Result<Backend, String> {
         .map_err(|e: fluidcast_backend::BackendError| e.to_string())
 }
 
-/// Particles built from the current data and settings, with their surface flags, and the
-/// RBF field's state for them.
+/// The scene built from the current data and settings (particles; what renders of them
+/// reuse), and what preparing them said.
 struct Prepared {
-    particles: Particles,
-    surface: Vec<bool>,
+    scene: Scene,
     info: ffi::RenderInfo,
-    rbf: rbf::RbfState,
-    /// The particles' level-of-detail hierarchy, built on the first render that asks for it.
-    lod: Option<LodHierarchy>,
-    /// The last view's cut (`None` inside: it merged nothing), kept for renders of the same
-    /// view (ParaView's still render after an interactive one, a re-render of an unchanged
-    /// window): the cut and its surface flags are not made again.
-    last_cut: Option<(CutView, Option<Cut>)>,
-}
-
-/// What a cut depends on besides the particles.
-#[derive(PartialEq)]
-struct CutView {
-    camera: Camera,
-    size: (u32, u32),
-    tolerance: f64,
 }
 
 fn new_renderer() -> Box<Renderer> {
@@ -459,9 +442,7 @@ impl Renderer {
             s.kernel
                 .parse::<Kernel>()
                 .map_err(|e| format!("kernel: {e}"))?;
-            if !is_rbf(&s.field) {
-                parse_field(&s.field)?;
-            }
+            plan::check_field(&s.field)?;
             backend_of(s.backend)?;
             if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
                 return Err(format!(
@@ -626,8 +607,10 @@ impl Renderer {
             let camera = self.camera.clone().ok_or("fluidcast: no camera set")?;
             let frame = camera.frame(1, 1).map_err(|e| e.to_string())?;
             let p = self.prepared()?;
-            Ok(fluidcast_render::support_depth_extent(&p.particles, &frame)
-                .map_or(Vec::new(), |(lo, hi)| vec![lo, hi]))
+            Ok(
+                fluidcast_backend::support_depth_extent(p.scene.particles(), &frame)
+                    .map_or(Vec::new(), |(lo, hi)| vec![lo, hi]),
+            )
         })
     }
 
@@ -663,7 +646,6 @@ impl Renderer {
             };
             let particles =
                 Particles::from_dataset(&self.data, &spec).map_err(|e| e.to_string())?;
-            let surface = particles.surface_flags(SURFACE_THRESHOLD);
             let (vlo, vhi) = particles.value_range();
             let (rlo, rhi) = particles
                 .radii
@@ -679,14 +661,11 @@ impl Renderer {
                 notes: particles.notes.join("\n"),
                 ..Default::default()
             };
-            self.prepared = Some(Prepared {
-                particles,
-                surface,
-                info,
-                rbf: rbf::RbfState::default(),
-                lod: None,
-                last_cut: None,
-            });
+            // The camera and transfer function are set before each render.
+            let tf =
+                fluidcast_view::TransferFunction::preset("viridis").map_err(|e| e.to_string())?;
+            let scene = Scene::new(particles, Camera::default(), tf);
+            self.prepared = Some(Prepared { scene, info });
         }
         Ok(self.prepared.as_ref().expect("prepared above"))
     }
@@ -737,203 +716,40 @@ impl Renderer {
                 .settings
                 .clone()
                 .ok_or("fluidcast: configure() was not called")?;
-            let mut params = RenderParams {
-                width,
-                height,
-                kernel: s.kernel.parse().map_err(|e: String| e)?,
-                field: if is_rbf(&s.field) {
-                    FieldKind::Csph
-                } else {
-                    parse_field(&s.field)?
-                },
-                adaptive: PlanParams {
-                    tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
-                    ..Default::default()
-                },
-                depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
-                ..Default::default()
-            };
             let name = self.name();
-            params.support_depths = self.part.support_depths;
+            let mut plan = plan_of(&s, (width, height), depth_limit, &camera)?;
+            plan.params.support_depths = self.part.support_depths;
             if let Some((lo, hi)) = self.part.crop {
-                fluidcast_render::crop_to_box(&mut params, &camera, lo, hi)
+                fluidcast_backend::crop_to_box(&mut plan.params, &camera, lo, hi)
                     .map_err(|e| format!("{name}: {e}"))?;
             }
             let t = Instant::now();
             self.prepared()?;
-            params.surfaces = self.surfaces_now(&s.scalars)?;
-            if is_rbf(&s.field) || s.shadows {
-                if s.lod_tolerance > 0.0 {
-                    return Err(format!("{name}: level of detail (LODTolerance) does not apply to the RBF field and shadows, which have their own cluster hierarchy; set it to 0"));
-                }
-                if s.memory_limit_mib > 0.0 {
-                    return Err(format!("{name}: the RBF field and shadows do not render in screen tiles (a memory limit) yet"));
-                }
-                let p = self
-                    .prepared
-                    .as_mut()
-                    .ok_or("fluidcast: particles missing")?;
-                let (image, stats) = p
-                    .rbf
-                    .render(&p.particles, (&camera, &tf), &params, &s)
-                    .map_err(|e| format!("{name}: {e}"))?;
-                let r = fluidcast_render::Rendered { image, stats };
-                return Ok(finish(
-                    &r,
-                    (rgba, depth),
-                    t,
-                    p,
-                    "",
-                    fluidcast_backend::Renderer::cpu().device(),
-                ));
-            }
+            plan.params.surfaces = self.surfaces_now(&s.scalars)?;
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
-            if s.lod_tolerance > 0.0 {
-                let view = CutView {
-                    camera: camera.clone(),
-                    size: (width, height),
-                    tolerance: s.lod_tolerance,
-                };
-                self.cut_for(&params, view)?;
-            }
-            let (Some(p), Some(b)) = (&self.prepared, &self.backend) else {
+            let (Some(p), Some(b)) = (&mut self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
             };
-            let cut = match &p.last_cut {
-                Some((_, cut)) if s.lod_tolerance > 0.0 => cut.as_ref(),
-                _ => None,
-            };
-            let (particles, flags, lod_note) = match cut {
-                Some(c) => (&c.particles, Some(c.surface.as_slice()), c.note.as_str()),
-                None => (&p.particles, Some(p.surface.as_slice()), ""),
-            };
-            let surfaces = params.surfaces.is_some();
-            let (device, note) = if surfaces {
-                let note = "iso-surfaces render on the CPU (reference ray caster)";
-                (fluidcast_backend::Renderer::cpu().device(), note)
-            } else {
-                (b.renderer.device(), b.renderer.note().unwrap_or(""))
-            };
-            let note = [note, lod_note]
-                .into_iter()
-                .filter(|n| !n.is_empty())
-                .collect::<Vec<_>>()
-                .join("\n");
-            let draw = |q: &fluidcast_sph::Particles,
-                        flags: Option<&[bool]>,
-                        prm: &RenderParams|
-             -> Result<
-                (fluidcast_image::Image, fluidcast_render::RenderStats),
-                BackendError,
-            > {
-                if surfaces {
-                    Ok(fluidcast_render::render_reference(q, &camera, &tf, prm)?)
-                } else {
-                    let r = b.renderer.render(q, flags, &camera, &tf, prm)?;
-                    Ok((r.image, r.stats))
-                }
-            };
-            let tile = match s.memory_limit_mib {
-                m if m > 0.0 => fluidcast_render::tile_particles_within(
-                    particles.len(),
-                    width,
-                    height,
-                    (m * 1048576.0).min(u64::MAX as f64) as u64,
-                )
-                .map_err(|e| format!("{name}: MemoryLimit {m} MiB: {e}"))?,
-                _ => None,
-            };
-            let (image, stats) = match tile {
-                Some(max) => fluidcast_render::render_in_tiles(
-                    particles,
-                    flags,
-                    &camera,
-                    &params,
-                    (max, 0),
-                    draw,
-                ),
-                None => draw(particles, flags, &params),
-            }
-            .map_err(|e| format!("{name} ({device}): {e}"))?;
-            let r = fluidcast_render::Rendered { image, stats };
-            Ok(finish(&r, (rgba, depth), t, p, &note, device))
+            p.scene.camera = camera;
+            p.scene.tf = tf;
+            let r = b.renderer.render(&mut p.scene, &plan).map_err(|e| {
+                let property = plan::property(&e, &s).map_or(String::new(), |p| format!("{p}: "));
+                format!("{name} ({}): {property}{e}", b.renderer.device())
+            })?;
+            Ok(finish(&r, (rgba, depth), t, &p.info))
         })
     }
 }
 
-impl Renderer {
-    /// Makes the prepared particles' cut for `view` (`last_cut`), unless it is the last
-    /// one's; builds their level-of-detail hierarchy first, once per data set. Refused with
-    /// iso-surfaces of another array, whose values are full detail's.
-    fn cut_for(&mut self, params: &RenderParams, view: CutView) -> Result<(), String> {
-        if let Some(s) = &params.surfaces {
-            if matches!(s.field, IsoField::Attribute(Some(_))) {
-                return Err(format!("{}: level of detail (LODTolerance) with iso-surfaces of another array: the hierarchy merges the rendered array only; set LODTolerance to 0 or draw surfaces of the rendered array", self.name()));
-            }
-        }
-        let name = self.name();
-        let p = self
-            .prepared
-            .as_mut()
-            .ok_or("fluidcast: particles missing")?;
-        if p.lod.is_none() {
-            let h = LodHierarchy::build(p.particles.clone())
-                .map_err(|e| format!("{name}: level of detail: {e}"))?;
-            p.lod = Some(h);
-        }
-        if p.last_cut.as_ref().is_some_and(|(v, _)| *v == view) {
-            return Ok(());
-        }
-        if let Some(h) = &p.lod {
-            let cut = lod_cut(h, &view.camera, view.size, view.tolerance)?;
-            p.last_cut = Some((view, cut));
-        }
-        Ok(())
-    }
-}
-
-/// One view's cut through the hierarchy, its surface flags, and a line saying how much.
-struct Cut {
-    particles: Particles,
-    surface: Vec<bool>,
-    note: String,
-}
-
-/// `None` when the cut merged nothing: the prepared particles are drawn as without it.
-fn lod_cut(
-    h: &LodHierarchy,
-    camera: &Camera,
-    (width, height): (u32, u32),
-    tolerance: f64,
-) -> Result<Option<Cut>, String> {
-    let frame = camera.frame(width, height).map_err(|e| e.to_string())?;
-    let c = h.cut(&frame, tolerance).map_err(|e| e.to_string())?;
-    if c.is_full_detail() {
-        return Ok(None);
-    }
-    let note = format!(
-        "level of detail {tolerance} px: {} of {} particles",
-        c.particles.len(),
-        h.full_detail().len()
-    );
-    Ok(Some(Cut {
-        surface: c.particles.surface_flags(SURFACE_THRESHOLD),
-        particles: c.particles,
-        note,
-    }))
-}
-
 /// Copies a frame into the caller's buffers and says what it did.
 fn finish(
-    r: &fluidcast_render::Rendered,
+    r: &Rendered,
     (rgba, depth): (&mut [f32], &mut [f32]),
     started: Instant,
-    p: &Prepared,
-    note: &str,
-    device: String,
+    info: &ffi::RenderInfo,
 ) -> ffi::RenderInfo {
-    let notes: Vec<&str> = [p.info.notes.as_str(), note]
-        .into_iter()
+    let notes: Vec<&str> = std::iter::once(info.notes.as_str())
+        .chain(r.notes.iter().map(String::as_str))
         .filter(|n| !n.is_empty())
         .collect();
     for (k, px) in r.image.rgba.iter().enumerate() {
@@ -944,23 +760,9 @@ fn finish(
         samples: r.stats.samples,
         total_ms: started.elapsed().as_secs_f64() * 1e3,
         notes: notes.join("\n"),
-        device,
-        ..p.info.clone()
+        device: r.device.clone(),
+        ..info.clone()
     }
-}
-
-fn parse_field(s: &str) -> Result<FieldKind, String> {
-    match s.to_ascii_lowercase().as_str() {
-        "" | "csph" => Ok(FieldKind::Csph),
-        "sph" => Ok(FieldKind::Sph),
-        "density" => Ok(FieldKind::Density),
-        other => Err(format!("unknown field '{other}' (csph, sph, density, rbf)")),
-    }
-}
-
-/// Whether `Settings::field` names the RBF field.
-pub(crate) fn is_rbf(field: &str) -> bool {
-    field.eq_ignore_ascii_case("rbf")
 }
 
 /// A transfer function from tables sampled evenly over [lo, hi] (what the C++ side reads off
@@ -1004,6 +806,8 @@ pub fn transfer_function(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fluidcast_lod::LodHierarchy;
+    use fluidcast_render::{PlanParams, RenderParams, SURFACE_THRESHOLD};
 
     fn cube(n: usize, spacing: f64) -> Vec<f64> {
         let mut v = Vec::new();
@@ -1154,7 +958,7 @@ mod tests {
         r.configure(&s).unwrap();
         let (rgba, depth, info) = render(&mut r).unwrap();
         // The library's cut of the same particles, rendered directly.
-        let p = r.prepared().unwrap().particles.clone();
+        let p = r.prepared().unwrap().scene.particles().clone();
         let cam = r.camera.clone().unwrap();
         let hier = LodHierarchy::build(p).unwrap();
         let cut = hier.cut(&cam.frame(w, h).unwrap(), 2.0).unwrap();
@@ -1217,7 +1021,7 @@ mod tests {
         assert!(r.configure(&s).unwrap_err().contains("not finite"));
     }
 
-    /// With iso values the bridge draws surfaces (on the CPU, whatever the backend) exactly
+    /// With iso values the bridge draws surfaces (on the CPU unless the backend is GPU) exactly
     /// as the library's reference renderer does for the same particles; bad settings are
     /// refused and the previous ones kept; no iso values: the volume again.
     #[test]
@@ -1233,11 +1037,11 @@ mod tests {
             let mut rgba = vec![0f32; 4 * 40 * 30];
             let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
             assert!(
-                info.notes.contains("iso-surfaces render on the CPU"),
+                info.notes.contains("reference ray caster"),
                 "{}",
                 info.notes
             );
-            let p = r.prepared().unwrap().particles.clone();
+            let p = r.prepared().unwrap().scene.particles().clone();
             let params = RenderParams {
                 width: w,
                 height: h,
@@ -1301,7 +1105,7 @@ mod tests {
         let renders: Vec<(Vec<f32>, u64)> = (0..5).map(|_| frame(&mut r)).collect();
         // The library's render of 1 and of 4 passes, from the bridge's own particles, camera
         // and transfer function: the first render is one pass, the fourth the mean of four.
-        let p = &r.prepared.as_ref().unwrap().particles;
+        let p = r.prepared.as_ref().unwrap().scene.particles();
         let (cam, tf) = (r.camera.clone().unwrap(), r.tf.clone().unwrap());
         let field = fluidcast_rbf::RbfField::build(p, &tf, &Default::default()).unwrap();
         let prm = RenderParams {
@@ -1489,6 +1293,36 @@ mod tests {
         let first = held(&r);
         r.render(w, h, &[], &mut gpu, &mut depth).unwrap();
         assert_eq!(first, held(&r), "the GPU was reopened for the second frame");
+        // The RBF field and iso-surfaces follow the backend, as in the CLI: on the GPU, and
+        // within the GPU's rounding of what the CPU draws.
+        let on = |r: &mut Renderer, backend: i32, field: &str| {
+            let mut depth = vec![0f32; 40 * 30];
+            let mut s = settings();
+            (s.backend, s.field) = (backend, field.into());
+            r.configure(&s).unwrap();
+            let mut rgba = vec![0f32; 4 * 40 * 30];
+            let info = r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+            (rgba, info)
+        };
+        let (rbf_cpu, info) = on(&mut r, 1, "rbf");
+        assert!(info.device.starts_with("CPU"), "{}", info.device);
+        let (rbf_gpu, info) = on(&mut r, 2, "rbf");
+        assert!(info.device.starts_with("GPU: "), "RBF: {}", info.device);
+        let max = rbf_cpu
+            .iter()
+            .zip(&rbf_gpu)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f32::max);
+        assert!(
+            max <= 2e-3,
+            "RBF GPU vs CPU through the bridge: max abs {max}"
+        );
+        assert!(rbf_cpu.iter().any(|&v| v > 0.01), "the RBF image is empty");
+        r.set_surfaces(&surfaces(&[0.5], "value")).unwrap();
+        let (_, info) = on(&mut r, 2, "csph");
+        assert!(info.device.starts_with("GPU: "), "iso: {}", info.device);
+        assert!(!info.notes.contains("reference"), "{}", info.notes);
+        r.set_surfaces(&surfaces(&[], "value")).unwrap();
         s.backend = 7;
         let e = r.configure(&s).unwrap_err();
         assert!(e.contains("backend 7"), "{e}");

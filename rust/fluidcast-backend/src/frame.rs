@@ -1,0 +1,269 @@
+//! [`Renderer::render`]: one frame of a [`Scene`] as a [`RenderPlan`] asks, whatever the mode,
+//! field, tiles, level of detail or device.
+
+use fluidcast_image::Image;
+use fluidcast_render::{
+    render_adaptive, render_in_tiles, render_over_surfaces, render_perspective_grid,
+    render_reference, tile_margin, tile_particles_within, RenderParams, RenderStats,
+};
+use fluidcast_sph::Particles;
+
+use crate::plan::{Mode, RenderPlan, Tiles};
+use crate::scene::LodReport;
+use crate::{march, BackendError, PlanItem, Renderer, Scene};
+use fluidcast_render::IsoField;
+
+/// One rendered frame and what a front-end tells its user about it.
+#[derive(Debug, Clone)]
+pub struct Rendered {
+    /// Premultiplied linear RGBA and depth per pixel.
+    pub image: Image,
+    /// Timings (milliseconds per stage) and counts.
+    pub stats: RenderStats,
+    /// Where it rendered: "CPU (N threads)" or "GPU: adapter".
+    pub device: String,
+    /// The mode the volume was sampled in (`None`: the stochastic march drew it).
+    pub mode: Option<Mode>,
+    /// What the library chose or fell back to, for the user ("rendering with the reference
+    /// ray caster …", `auto`'s fallback to the CPU, the level of detail's line).
+    pub notes: Vec<String>,
+    /// What level of detail did, when asked for.
+    pub lod: Option<LodReport>,
+    /// Bytes of the marched field (RBF BVH), when marched.
+    pub march_bytes: Option<usize>,
+}
+
+/// The most particles a screen tile of `n` particles at `width × height` may hold under
+/// `tiles`; `None`: one render. With a budget only, `None` also when one render fits it.
+pub fn tile_particles(
+    n: usize,
+    (width, height): (u32, u32),
+    tiles: &Tiles,
+) -> Result<Option<usize>, BackendError> {
+    let n = n.max(1);
+    let by_count = tiles.count.map(|t| n.div_ceil(t.max(1) as usize));
+    let Some(budget) = tiles.budget_bytes else {
+        return Ok(by_count);
+    };
+    let by_memory = tile_particles_within(n, width, height, budget)?.unwrap_or(n);
+    Ok(Some(by_count.map_or(by_memory, |c| c.min(by_memory))).filter(|&m| m < n))
+}
+
+impl Renderer {
+    /// Renders one frame of `scene` as `plan` asks: the stochastic march when `plan.march`
+    /// is set, else the volume in the plan's mode ([`RenderPlan::mode_for`]), on this
+    /// renderer's device for the adaptive mode and the RBF field, through the level-of-detail
+    /// cut and in screen tiles when asked. What the scene keeps (surface flags, hierarchy and
+    /// cut, the marched field, accumulated passes) is reused by later frames.
+    pub fn render(&self, scene: &mut Scene, plan: &RenderPlan) -> Result<Rendered, BackendError> {
+        let mut notes: Vec<String> = self.note().map(str::to_string).into_iter().collect();
+        if let Some(m) = &plan.march {
+            check_march(plan)?;
+            let f = march::render(scene, &plan.params, m, self.gpu())?;
+            let device = if f.on_gpu {
+                self.device()
+            } else {
+                Renderer::cpu().device()
+            };
+            return Ok(Rendered {
+                image: f.image,
+                stats: f.stats,
+                device,
+                mode: None,
+                notes,
+                lod: None,
+                march_bytes: Some(f.field_bytes),
+            });
+        }
+        check_lod(plan)?;
+        let (mode, note) = plan.mode_for(self.requested);
+        notes.extend(note.map(str::to_string));
+        let size = (plan.params.width, plan.params.height);
+        let flags = mode == Mode::Adaptive && plan.params.adaptive.uses_surface_cells();
+        let lod = match plan.lod {
+            Some(t) => {
+                let cut = scene.cut_for(size, t)?;
+                let merged = cut.particles.is_some();
+                if flags {
+                    cut.surface();
+                }
+                let report = cut.report.clone();
+                if flags && !merged {
+                    scene.with_surface();
+                }
+                if merged {
+                    notes.push(report.line());
+                }
+                Some(report)
+            }
+            None => {
+                if flags {
+                    scene.with_surface();
+                }
+                None
+            }
+        };
+        let scene = &*scene;
+        let cut = scene.cut.as_ref().filter(|_| lod.is_some());
+        let (particles, surface) = match cut.and_then(|c| c.particles.as_ref().map(|p| (p, c))) {
+            Some((p, c)) => (p, c.surface_flags()),
+            None => (scene.particles(), scene.surface_flags()),
+        };
+        let tiles = tile_particles(particles.len(), size, &plan.tiles)?;
+        let (image, stats) = self.render_mode(
+            scene,
+            particles,
+            surface.filter(|_| flags),
+            plan,
+            (mode, tiles),
+        )?;
+        let device = match mode {
+            Mode::Adaptive => self.device(),
+            _ => Renderer::cpu().device(),
+        };
+        Ok(Rendered {
+            image,
+            stats,
+            device,
+            mode: Some(mode),
+            notes,
+            lod,
+            march_bytes: None,
+        })
+    }
+
+    /// The volume of `particles` in `mode`, in screen tiles of at most `tiles` particles.
+    fn render_mode(
+        &self,
+        scene: &Scene,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        plan: &RenderPlan,
+        (mode, tiles): (Mode, Option<usize>),
+    ) -> Result<(Image, RenderStats), BackendError> {
+        let draw = |p: &Particles, s: Option<&[bool]>, prm: &RenderParams| {
+            self.render_untiled(scene, p, s, prm, mode)
+        };
+        match tiles {
+            // The perspective grid's pixels read neighbouring columns: a tile also needs
+            // the particles around it.
+            Some(max) => {
+                let margin = match mode {
+                    Mode::PerspectiveGrid { cell } => tile_margin(cell),
+                    _ => 0,
+                };
+                let (camera, params) = (&scene.camera, &plan.params);
+                render_in_tiles(particles, surface, camera, params, (max, margin), draw)
+            }
+            None => draw(particles, surface, &plan.params),
+        }
+    }
+
+    /// One render of `particles` (the scene's, a cut's or a tile's) in `mode`.
+    fn render_untiled(
+        &self,
+        scene: &Scene,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        params: &RenderParams,
+        mode: Mode,
+    ) -> Result<(Image, RenderStats), BackendError> {
+        let (camera, tf) = (&scene.camera, &scene.tf);
+        Ok(match mode {
+            Mode::Reference => render_reference(particles, camera, tf, params)?,
+            Mode::PerspectiveGrid { cell } => {
+                render_perspective_grid(particles, camera, tf, params, cell)?
+            }
+            Mode::Adaptive if params.surfaces.is_some() => {
+                let what = match self.gpu() {
+                    Some(_) => "the GPU backend",
+                    None => "the adaptive grid renderer",
+                };
+                render_over_surfaces(particles, camera, tf, params, what, |p| {
+                    self.render_volume(particles, surface, scene, p)
+                })?
+            }
+            Mode::Adaptive => self.render_volume(particles, surface, scene, params)?,
+        })
+    }
+
+    /// The adaptive volume alone, on this renderer's device.
+    fn render_volume(
+        &self,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        scene: &Scene,
+        params: &RenderParams,
+    ) -> Result<(Image, RenderStats), BackendError> {
+        let (camera, tf) = (&scene.camera, &scene.tf);
+        match self.gpu() {
+            Some(g) => {
+                let r = g.render_adaptive(particles, surface, camera, tf, params)?;
+                Ok((r.image, r.stats))
+            }
+            None => {
+                let r = render_adaptive(particles, surface, camera, tf, params)?;
+                Ok((r.image, r.stats))
+            }
+        }
+    }
+
+    /// The colour-map range a density RBF field (`plan.march`) of `scene` takes when none
+    /// is given: 0 up to the largest field value at a sample of particle centres. The field
+    /// it builds is the one the next render of `plan` marches.
+    pub fn rbf_density_range(
+        &self,
+        scene: &mut Scene,
+        plan: &RenderPlan,
+    ) -> Result<(f64, f64), BackendError> {
+        let m = plan
+            .march
+            .as_ref()
+            .ok_or_else(|| BackendError::Plan("the density range is the RBF field's".into()))?;
+        march::density_range(scene, &plan.params, m)
+    }
+}
+
+/// Level of detail merges the rendered attribute only: iso-surfaces of another array are
+/// refused with it.
+fn check_lod(plan: &RenderPlan) -> Result<(), BackendError> {
+    let other = plan
+        .params
+        .surfaces
+        .as_ref()
+        .is_some_and(|s| matches!(s.field, IsoField::Attribute(Some(_))));
+    if plan.lod.is_some() && other {
+        return Err(BackendError::Refused {
+            item: PlanItem::Lod,
+            why: "level of detail with iso-surfaces of another array: the hierarchy merges the rendered array only; turn level of detail off or draw surfaces of the rendered array".into(),
+        });
+    }
+    Ok(())
+}
+
+/// What the stochastic march does not do yet, refused by name.
+fn check_march(plan: &RenderPlan) -> Result<(), BackendError> {
+    let refuse = |item, why: &str| {
+        let why = why.to_string();
+        Err(BackendError::Refused { item, why })
+    };
+    if plan.lod.is_some() {
+        return refuse(PlanItem::Lod, "level of detail does not apply to the RBF field and shadows, which have their own cluster hierarchy");
+    }
+    if plan.tiles != Tiles::default() {
+        return refuse(PlanItem::Tiles, "the RBF field and shadows do not render in screen tiles (a memory limit or a tile count) yet");
+    }
+    if plan.params.surfaces.is_some() || plan.params.volume_lighting.is_some() {
+        return refuse(
+            PlanItem::Surfaces,
+            "the RBF field and shadows draw no iso-surfaces and no shaded volume yet",
+        );
+    }
+    if plan.mode.is_some() {
+        return refuse(
+            PlanItem::Mode,
+            "the RBF field and shadows are drawn by their own ray marcher: no mode applies",
+        );
+    }
+    Ok(())
+}

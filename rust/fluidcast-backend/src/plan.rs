@@ -1,0 +1,98 @@
+//! What a frame asks for: the [`RenderPlan`], one struct for every front-end.
+//!
+//! The CLI fills it from its options, the VTK mapper and ParaView from their properties and
+//! Python from its arguments; [`crate::Renderer::render`] draws it. A choice the library
+//! makes for the caller (the renderer under iso-surfaces) is made here, once, with the note
+//! that says so.
+
+use fluidcast_rbf::RbfOptions;
+use fluidcast_render::{RbfRenderParams, RenderParams};
+
+use crate::Backend;
+
+/// How the SPH volume is sampled along the rays.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// The adaptive grid renderer (Hochstetter et al. 2016), on the renderer's backend.
+    Adaptive,
+    /// The reference renderer: every particle of a tile scattered into every ray (CPU).
+    Reference,
+    /// The perspective grid of Fraedrich et al. 2010, one column per `cell` pixels (CPU).
+    PerspectiveGrid {
+        /// Pixels per grid column side (1..=16).
+        cell: u32,
+    },
+}
+
+/// Rendering one view in screen tiles, each with only the particles that reach it: the same
+/// image in less memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Tiles {
+    /// At least this many tiles (`None`: as the budget needs).
+    pub count: Option<u32>,
+    /// The most bytes the render itself may hold (particles copied into tiles, images);
+    /// `None`: no limit. Front-ends subtract what their process holds already.
+    pub budget_bytes: Option<u64>,
+}
+
+/// What the stochastic ray marcher draws instead of the sampled SPH volume.
+#[derive(Debug, Clone)]
+pub enum Marched {
+    /// The attribute-aware RBF field of Morrical et al. 2023 with these options.
+    Rbf(RbfOptions),
+    /// The SPH field `RenderParams::kernel`/`field` names, lit with shadows (CPU only: the
+    /// GPU's march sums Gaussians).
+    Sph,
+}
+
+/// The stochastic ray march: field, passes and progressive accumulation.
+#[derive(Debug, Clone)]
+pub struct March {
+    /// The field marched.
+    pub field: Marched,
+    /// Passes per render, seed, step, noise, shadows. `first_pass` is set by the renderer.
+    pub params: RbfRenderParams,
+    /// Passes accumulated over renders of an unchanged view (ParaView's still renders);
+    /// at most `params.spp` means none: every render draws `spp` fresh passes.
+    pub progressive_passes: u32,
+    /// Also time one refit of the field's BVH to its radius map (stage `refit`).
+    pub time_refit: bool,
+}
+
+/// Everything a frame asks for besides the scene: one struct for every front-end.
+#[derive(Debug, Clone, Default)]
+pub struct RenderPlan {
+    /// Image size, kernel, field, error tolerance and plan switches, iso-surfaces, lighting,
+    /// depth limits: what the renderers share.
+    pub params: RenderParams,
+    /// `None`: the library's choice ([`RenderPlan::mode_for`]).
+    pub mode: Option<Mode>,
+    /// Screen tiles under a memory budget.
+    pub tiles: Tiles,
+    /// Level of detail (Fraedrich et al. 2010): the largest merged cell edge, pixels at its
+    /// depth (0: full detail, Morton-ordered); `None`: every particle as given.
+    pub lod: Option<f64>,
+    /// The stochastic march (RBF field, or shadows) instead of the sampled volume.
+    pub march: Option<March>,
+}
+
+/// The note [`RenderPlan::mode_for`] gives when iso-surfaces or a shaded volume take the
+/// reference renderer.
+pub const REFERENCE_FOR_SURFACES: &str = "rendering with the reference ray caster (exact, and it composites translucent surfaces with the volume)";
+
+impl RenderPlan {
+    /// The mode this plan renders in with `backend` asked for, and a note when the library
+    /// chose it: iso-surfaces (except on an explicitly asked GPU, whose adaptive volume the
+    /// surfaces stop) and a shaded volume take the reference renderer; otherwise adaptive.
+    /// The stochastic march has no mode.
+    pub fn mode_for(&self, backend: Backend) -> (Mode, Option<&'static str>) {
+        if let Some(m) = self.mode {
+            return (m, None);
+        }
+        let surfaces = self.params.surfaces.is_some() && backend != Backend::Gpu;
+        if self.march.is_none() && (surfaces || self.params.volume_lighting.is_some()) {
+            return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
+        }
+        (Mode::Adaptive, None)
+    }
+}
