@@ -295,6 +295,28 @@ std::string vtkFluidCastVolumeMapper::GetKernelName(int index)
 }
 
 //------------------------------------------------------------------------------
+namespace
+{
+std::string NameAt(const rust::Vec<rust::String>& names, int index)
+{
+  return index >= 0 && static_cast<size_t>(index) < names.size() ? std::string(names[index])
+                                                                 : std::string();
+}
+}
+
+//------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetFieldName(int index)
+{
+  return NameAt(fluidcast::field_names(), index);
+}
+
+//------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetRBFClassificationName(int index)
+{
+  return NameAt(fluidcast::rbf_classification_names(), index);
+}
+
+//------------------------------------------------------------------------------
 std::string vtkFluidCastVolumeMapper::GetBackendAsString()
 {
   // The names and their order come from the Rust side (fluidcast_backend::Backend::NAMES).

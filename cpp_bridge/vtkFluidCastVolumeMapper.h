@@ -96,6 +96,16 @@ public:
 
   ///@{
   /**
+   * The names Field and RBFClassification take, by index in fluidcast's lists (the Rust side's,
+   * in the order of ParaView's FluidCastField: 0 csph, 1 sph, 2 density, 3 rbf; and
+   * FluidCastRBFClassification: 0 post, 1 pre); "" past their ends.
+   */
+  static std::string GetFieldName(int index);
+  static std::string GetRBFClassificationName(int index);
+  ///@}
+
+  ///@{
+  /**
    * The field rendered, as `fluidcast render --field`: "csph" (default: the Shepard-normalised
    * SPH field of the array), "sph" (the plain SPH sum), "density", or "rbf": the
    * attribute-aware RBF field of Morrical et al. 2023. For "rbf" each particle is a truncated

@@ -319,13 +319,18 @@ void vtkFluidCastRepresentation::SetLODTolerance(double px)
 
 void vtkFluidCastRepresentation::SetField(int field)
 {
-  static const char* const names[] = { "csph", "sph", "density", "rbf" };
-  this->Mapper->SetField(names[field >= 0 && field < 4 ? field : 0]);
+  // The names and their order come from the Rust side (the bridge's field_names()); one
+  // past the list is the first.
+  std::string name = vtkFluidCastVolumeMapper::GetFieldName(field);
+  this->Mapper->SetField(
+    name.empty() ? vtkFluidCastVolumeMapper::GetFieldName(0).c_str() : name.c_str());
 }
 
 void vtkFluidCastRepresentation::SetRBFClassification(int classification)
 {
-  this->Mapper->SetRBFClassification(classification == 1 ? "pre" : "post");
+  std::string name = vtkFluidCastVolumeMapper::GetRBFClassificationName(classification);
+  this->Mapper->SetRBFClassification(
+    name.empty() ? vtkFluidCastVolumeMapper::GetRBFClassificationName(0).c_str() : name.c_str());
 }
 
 void vtkFluidCastRepresentation::SetRBFRadius(double r)

@@ -30,9 +30,13 @@ use fluidcast_sph::{
     Component, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
 use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
-use plan::plan_of;
+use plan::{field_names, plan_of};
 use reader::{particle_reader_claims, read_particle_file, read_series, ParticleFile};
 
+#[allow(
+    unsafe_code,
+    reason = "cxx generates the FFI shims of this module; everything else in the crate is safe"
+)]
 #[cxx::bridge(namespace = "fluidcast")]
 mod ffi {
     /// vtkCamera's fields (world space; `view_angle` vertical, degrees).
@@ -182,6 +186,11 @@ mod ffi {
 
         /// The backend names `Settings::backend` indexes: auto, cpu, gpu.
         fn backend_names() -> Vec<String>;
+        /// `Settings::field`'s names in the order of ParaView's FluidCastField enumeration.
+        fn field_names() -> Vec<String>;
+        /// `Settings::rbf_classification`'s names in the order of ParaView's
+        /// FluidCastRBFClassification enumeration.
+        fn rbf_classification_names() -> Vec<String>;
         /// The kernel names `Settings::kernel` takes, in the order of ParaView's
         /// `FluidCastKernel` (cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian).
         fn kernel_names() -> Vec<String>;
@@ -281,6 +290,10 @@ struct OpenBackend {
 
 fn kernel_names() -> Vec<String> {
     Kernel::ALL.iter().map(|k| k.name().to_string()).collect()
+}
+
+fn rbf_classification_names() -> Vec<String> {
+    plan::CLASSIFICATION_NAMES.map(str::to_string).to_vec()
 }
 
 fn backend_names() -> Vec<String> {
@@ -667,7 +680,9 @@ impl Renderer {
             let scene = Scene::new(particles, Camera::default(), tf);
             self.prepared = Some(Prepared { scene, info });
         }
-        Ok(self.prepared.as_ref().expect("prepared above"))
+        self.prepared
+            .as_ref()
+            .ok_or_else(|| "fluidcast: particles missing".to_string())
     }
 
     /// The backend for (backend, adapter), opened on first use and when either changes.

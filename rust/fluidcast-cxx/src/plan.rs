@@ -12,9 +12,27 @@ use fluidcast_view::Camera;
 
 use crate::ffi;
 
+/// The RBF field's name, after the SPH fields' (`FieldKind::ALL`) in [`field_names`].
+const RBF: &str = "rbf";
+
+/// `Settings::field`'s names in the order of ParaView's `FluidCastField` enumeration: the
+/// SPH fields, then the RBF field.
+pub(crate) fn field_names() -> Vec<String> {
+    FieldKind::ALL
+        .iter()
+        .map(|f| f.name())
+        .chain([RBF])
+        .map(str::to_string)
+        .collect()
+}
+
+/// `Settings::rbf_classification`'s names in the order of ParaView's
+/// `FluidCastRBFClassification` enumeration.
+pub(crate) const CLASSIFICATION_NAMES: [&str; 2] = ["post", "pre"];
+
 /// Whether `Settings::field` names the RBF field.
 pub(crate) fn is_rbf(field: &str) -> bool {
-    field.eq_ignore_ascii_case("rbf")
+    field.eq_ignore_ascii_case(RBF)
 }
 
 /// Refuses a field name no renderer has.
@@ -26,12 +44,11 @@ pub(crate) fn check_field(s: &str) -> Result<(), String> {
 }
 
 fn parse_field(s: &str) -> Result<FieldKind, String> {
-    match s.to_ascii_lowercase().as_str() {
-        "" | "csph" => Ok(FieldKind::Csph),
-        "sph" => Ok(FieldKind::Sph),
-        "density" => Ok(FieldKind::Density),
-        other => Err(format!("unknown field '{other}' (csph, sph, density, rbf)")),
-    }
+    let s = s.trim().to_ascii_lowercase();
+    FieldKind::ALL
+        .into_iter()
+        .find(|f| f.name() == s || s.is_empty() && *f == FieldKind::default())
+        .ok_or_else(|| format!("unknown field '{s}' ({})", field_names().join(", ")))
 }
 
 /// The plan for settings `s` at `width × height` seen by `camera` (the shadows' default
@@ -107,14 +124,18 @@ fn march(s: &ffi::Settings, camera: &Camera) -> Result<March, String> {
 
 /// The field options `s` asks for (`attribute`: a point array is rendered).
 fn options(s: &ffi::Settings, attribute: bool) -> Result<RbfOptions, String> {
-    let colouring = match (
-        attribute,
-        s.rbf_classification.to_ascii_lowercase().as_str(),
-    ) {
+    let c = s.rbf_classification.to_ascii_lowercase();
+    let [post, pre] = CLASSIFICATION_NAMES;
+    let colouring = match (attribute, c.as_str()) {
         (false, _) => Colouring::Density,
-        (true, "" | "post") => Colouring::Post,
-        (true, "pre") => Colouring::Pre,
-        (true, c) => return Err(format!("RBF classification '{c}': expected post or pre")),
+        (true, "") => Colouring::Post,
+        (true, n) if n == post => Colouring::Post,
+        (true, n) if n == pre => Colouring::Pre,
+        (true, n) => {
+            return Err(format!(
+                "RBF classification '{n}': expected {post} or {pre}"
+            ))
+        }
     };
     let radius_map = match &s.radius_map[..] {
         [] => AttributeMap::constant(1.0),
@@ -140,4 +161,74 @@ pub(crate) fn property(e: &BackendError, s: &ffi::Settings) -> Option<String> {
         PlanItem::Surfaces => "iso-surfaces (the iso-surface blend mode)".to_string(),
         PlanItem::Mode => "the field (RBF)".to_string(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The entries (text, value) of the `EnumerationDomain` of ParaView property `name` in the
+    /// representation's server-manager XML.
+    fn enumeration(xml: &str, name: &str) -> Vec<(String, i64)> {
+        let at = xml
+            .find(&format!("name=\"{name}\""))
+            .unwrap_or_else(|| panic!("no property {name} in the XML"));
+        let rest = &xml[at..];
+        let end = rest.find("</EnumerationDomain>").expect("an enumeration");
+        rest[..end]
+            .split("<Entry ")
+            .skip(1)
+            .map(|e| {
+                let attr = |k: &str| {
+                    let s = &e[e.find(&format!("{k}=\"")).expect(k) + k.len() + 2..];
+                    s[..s.find('"').expect("closing quote")].to_string()
+                };
+                (
+                    attr("text"),
+                    attr("value").parse().expect("an integer value"),
+                )
+            })
+            .collect()
+    }
+
+    /// ParaView's enumerations (kernel, field, RBF classification, backend) and the Rust lists
+    /// the bridge hands the C++ side agree entry by entry: same count, values 0, 1, 2 … in
+    /// order, and each label begins with the Rust name (`wendland-c2` as "Wendland C2").
+    #[test]
+    fn paraview_enumerations_are_the_rust_lists() {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../paraview/Representation/fluidcast_representation.xml"
+        );
+        let xml = std::fs::read_to_string(path).expect("the representation's XML");
+        let lists = [
+            ("FluidCastKernel", crate::kernel_names()),
+            ("FluidCastField", field_names()),
+            (
+                "FluidCastRBFClassification",
+                crate::rbf_classification_names(),
+            ),
+            ("FluidCastBackend", crate::backend_names()),
+        ];
+        for (property, names) in lists {
+            let entries = enumeration(&xml, property);
+            assert_eq!(
+                entries.len(),
+                names.len(),
+                "{property}: {entries:?} vs {names:?}"
+            );
+            for (i, ((text, value), name)) in entries.iter().zip(&names).enumerate() {
+                assert_eq!(
+                    *value, i as i64,
+                    "{property}: entry {text} has value {value}"
+                );
+                let label = text.to_ascii_lowercase();
+                let want = name.replace('-', " ");
+                assert!(
+                    label.starts_with(&want),
+                    "{property} entry {i}: '{text}' in ParaView, '{name}' in Rust"
+                );
+            }
+        }
+    }
 }

@@ -123,7 +123,10 @@ impl Gpu {
         params: &RenderParams,
         dump: bool,
     ) -> Result<(Rendered, Option<GpuDump>), GpuError> {
-        let _frame = self.frame_lock.lock().expect("frame lock");
+        let _frame = self
+            .frame_lock
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         check_frame(particles, surface, tf, params)?;
         let frame = camera
             .frame(params.width, params.height)

@@ -252,7 +252,10 @@ impl Gpu {
         data: Option<&[u8]>,
     ) -> wgpu::Buffer {
         let size = size.max(16).next_multiple_of(16);
-        let mut cache = self.buffers.lock().expect("buffer cache");
+        let mut cache = self
+            .buffers
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         let fits = cache.get(role).is_some_and(|b| b.size() >= size);
         if !fits {
             let grown = (size + size / 2)
@@ -283,7 +286,10 @@ impl Gpu {
 
     /// Bytes of GPU buffers held between frames.
     pub fn memory_bytes(&self) -> u64 {
-        let cache = self.buffers.lock().expect("buffer cache");
+        let cache = self
+            .buffers
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         cache.values().map(|b| b.size()).sum()
     }
 

@@ -98,7 +98,10 @@ impl Gpu {
         tf: &TransferFunction,
         params: &RenderParams,
     ) -> Result<Rendered, GpuError> {
-        let _frame = self.frame_lock.lock().expect("frame lock");
+        let _frame = self
+            .frame_lock
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         check_supported(params, tf)?;
         let (grid, plan) = (&planned.grid, &planned.plan);
         let mut ctx = self.frame_ctx(&grid.frame, params, tf, grid.particles.len());

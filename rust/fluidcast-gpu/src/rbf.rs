@@ -55,7 +55,10 @@ impl Gpu {
         if points > crate::MAX_TF_POINTS {
             return Err(GpuError::TransferFunction(points));
         }
-        let _frame_lock = self.frame_lock.lock().expect("frame lock");
+        let _frame_lock = self
+            .frame_lock
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         let (w, h) = (params.width, params.height);
         let frame = camera.frame(w, h).map_err(RenderError::from)?;
         let bvh = field.bvh();

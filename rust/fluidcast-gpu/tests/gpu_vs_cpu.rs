@@ -1,6 +1,7 @@
 //! Images of the GPU renderer (every stage on the GPU) against the CPU renderer's.
 //! Stage-by-stage comparisons are in stages.rs. Without a wgpu adapter the tests skip (see
 //! `common::gpu`).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use common::{cloud, cloud_tf, gpu, modes, orbit, shared_ddb, shared_pysph};

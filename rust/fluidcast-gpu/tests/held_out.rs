@@ -4,6 +4,7 @@
 //! bundles between full ones. Every pixel that differs by more than 1e-3 must be one of the
 //! two measured f32 effects (`fluidcast_render::precision::f32_explanation`); anything else is
 //! a bug.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use common::{gpu, modes, shared_ddb, shared_pysph};

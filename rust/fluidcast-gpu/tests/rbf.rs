@@ -1,4 +1,5 @@
 //! The RBF field on the GPU against the CPU renderer: the same passes and offsets.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use fluidcast_rbf::{Colouring, RbfField, RbfOptions};

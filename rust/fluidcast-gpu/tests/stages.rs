@@ -1,6 +1,7 @@
 //! Each GPU stage against its CPU mirror: the grid (pairs, radix sort, cells with merge
 //! bits, bundle ranges), the plan (levels chosen per cell), the ray caster alone on a CPU
 //! plan, and the strict error bound on the GPU's own images.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use std::collections::BTreeMap;

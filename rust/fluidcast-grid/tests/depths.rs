@@ -3,6 +3,7 @@
 //! (its height at that depth, 2 z tan(angle/2) / H) divided by the sampling scale, with
 //! depths in geometric progression; a parallel view steps by one pixel (2 · parallel scale
 //! / H) divided by the scale.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use fluidcast_grid::SampleDepths;
 use fluidcast_view::Camera;

@@ -636,6 +636,10 @@ fn cell_bounds(
     scratch: &mut Scratch,
 ) -> CellSamples {
     let (grid, tfb, params) = (view.grid, view.tfb, view.field);
+    #[allow(
+        clippy::expect_used,
+        reason = "a grid has cells only once its depths are set (GridBuilder); the hot path keeps no error branch"
+    )]
     let depths = grid.depths.as_ref().expect("cells exist only with depths");
     let dz = grid.params.depth_samples as usize;
     let k0 = cell.z as usize * dz;

@@ -16,7 +16,9 @@ impl RangeTable {
         let mut hi = vec![v.to_vec()];
         let mut w = 1;
         while 2 * w <= v.len() {
-            let (pl, ph) = (lo.last().unwrap(), hi.last().unwrap());
+            let (Some(pl), Some(ph)) = (lo.last(), hi.last()) else {
+                break;
+            };
             let n = v.len() + 1 - 2 * w;
             let nl: Vec<f64> = (0..n).map(|i| pl[i].min(pl[i + w])).collect();
             let nh: Vec<f64> = (0..n).map(|i| ph[i].max(ph[i + w])).collect();

@@ -8,6 +8,7 @@
 //! * Every full-rate pixel lies inside its bundle's full-rate bound, and every strict
 //!   adaptive pixel inside the bound of the chosen plan (property test).
 //! * The default (relaxed, super-pixels): at most 0.05 % of pixels above E_I.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use std::path::PathBuf;
 

@@ -3,6 +3,7 @@
 //! everything else, the error names exactly the number of (particle, 8×8 tile) pairs whose
 //! rectangles overlap, counted here tile by tile. Its own test binary: it sets
 //! FLUIDCAST_MEMORY_LIMIT, which every check in the process reads.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use fluidcast_grid::{screen_rect, view_particles};
 use fluidcast_render::{render_reference, RenderParams};

@@ -1,5 +1,6 @@
 //! `crop_to_box`: rays cropped to boxes that partition space, composited in visibility
 //! order, give the image of the whole (what each MPI rank renders of the region it owns).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use common::{cloud, cloud_view, composite_under, max_channel_diff};

@@ -1,4 +1,5 @@
 //! Rays stop at opaque geometry: `RenderParams::depth_limit`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 use std::sync::Arc;
 

@@ -2,6 +2,7 @@
 //! budget before anything is allocated: a budget one byte short of a 300×200 image's is an
 //! error that names the render, the exact budget is not. Its own test binary: it sets
 //! FLUIDCAST_MEMORY_LIMIT, which every check in the process reads.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use fluidcast_render::{validate, RenderParams, IMAGE_BYTES_PER_PIXEL};
 

@@ -3,6 +3,7 @@
 //! oracle as the reference's brute-force test, on three kernels and fields, perspective and
 //! parallel, plus an opaque surface that ends the rays, and the scene moved into the positive
 //! octant, where simulation domains usually lie (no coordinate near or below 0).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 mod common;
 use common::{cloud, cloud_view};

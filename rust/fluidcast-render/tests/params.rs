@@ -1,5 +1,6 @@
 //! `validate` accepts exactly the documented ranges, at their edges, and says which value is
 //! wrong; `depth_limit_at` reads pixel (i, j) of a row-major, top-row-first buffer.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use std::sync::Arc;
 

@@ -1,4 +1,5 @@
 //! The perspective grid renderer (Fraedrich et al. 2010) against the reference renderer.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 mod common;
 

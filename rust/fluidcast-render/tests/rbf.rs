@@ -1,5 +1,6 @@
 //! The RBF ray marcher against the analytic integral of one Gaussian, against a marcher
 //! written here on point range queries, and its progressive accumulation's convergence.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use fluidcast_image::Image;
 use fluidcast_rbf::{Colouring, RbfField, RbfOptions};

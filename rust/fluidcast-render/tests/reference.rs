@@ -1,3 +1,4 @@
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 use common::{cloud, cloud_view};
 use fluidcast_render::{render_reference, RenderParams, SampleDepths};

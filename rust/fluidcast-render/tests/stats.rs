@@ -1,6 +1,7 @@
 //! What the renderers report beside the image: the same composited-sample count and depth
 //! range wherever they take the same samples, the particles in view, and stage timings that
 //! are non-negative, in order and add up to no more than the total.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 mod common;
 use common::{cloud, cloud_view};

@@ -1,4 +1,5 @@
 //! Iso-surfaces against analytic shapes and a brute-force sum over all particles.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 
 use std::sync::Arc;
 

@@ -1,6 +1,7 @@
 //! `render_in_tiles`: a view rendered in screen tiles, each with only the particles that
 //! reach it, is the image of one render of everything, bit for bit (what `--memory-limit`
 //! promises), for every renderer.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)] // tests may fail loudly
 mod common;
 
 use std::sync::Arc;

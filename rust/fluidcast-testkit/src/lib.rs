@@ -1,6 +1,12 @@
 //! Deterministic scenes for tests: one random number generator and the random particle
 //! cloud that the renderer, grid and GPU tests share, so that their scenes stay the same
 //! particle for particle.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    reason = "test support only (a dev-dependency): a broken fixture must fail the test loudly"
+)]
 
 use std::path::PathBuf;
 
