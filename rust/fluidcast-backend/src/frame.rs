@@ -3,8 +3,9 @@
 
 use fluidcast_image::Image;
 use fluidcast_render::{
-    render_adaptive, render_in_tiles, render_over_surfaces, render_perspective_grid,
-    render_reference, tile_margin, tile_particles_within, RenderParams, RenderStats,
+    render_adaptive, render_in_tiles, render_object_space, render_over_surfaces,
+    render_perspective_grid, render_reference, tile_margin, tile_particles_within, RenderParams,
+    RenderStats,
 };
 use fluidcast_sph::Particles;
 
@@ -29,8 +30,10 @@ pub struct Rendered {
     pub notes: Vec<String>,
     /// What level of detail did, when asked for.
     pub lod: Option<LodReport>,
-    /// Bytes of the marched field (RBF BVH), when marched.
+    /// Bytes of the marched field (weights, attributes and BVH), when marched.
     pub march_bytes: Option<usize>,
+    /// Bytes of the marched field's BVH alone, when marched.
+    pub march_bvh_bytes: Option<usize>,
 }
 
 /// The most particles a screen tile of `n` particles at `width × height` may hold under
@@ -73,50 +76,29 @@ impl Renderer {
                 notes,
                 lod: None,
                 march_bytes: Some(f.field_bytes),
+                march_bvh_bytes: Some(f.bvh_bytes),
             });
         }
         check_lod(plan)?;
         let (mode, note) = plan.mode_for(self.requested);
         notes.extend(note.map(str::to_string));
-        let size = (plan.params.width, plan.params.height);
         let flags = mode == Mode::Adaptive && plan.params.adaptive.uses_surface_cells();
-        let lod = match plan.lod {
-            Some(t) => {
-                let cut = scene.cut_for(size, t)?;
-                let merged = cut.particles.is_some();
-                if flags {
-                    cut.surface();
-                }
-                let report = cut.report.clone();
-                if flags && !merged {
-                    scene.with_surface();
-                }
-                if merged {
-                    notes.push(report.line());
-                }
-                Some(report)
-            }
-            None => {
-                if flags {
-                    scene.with_surface();
-                }
-                None
-            }
-        };
+        let t_prep = std::time::Instant::now();
+        let lod = prepare(scene, plan, flags, &mut notes)?;
+        // What this render made of the scene first (level-of-detail hierarchy and cut, surface
+        // flags; about 0 when the scene held them), in milliseconds: stage `scene`.
+        let prep_ms = t_prep.elapsed().as_secs_f64() * 1e3;
         let scene = &*scene;
         let cut = scene.cut.as_ref().filter(|_| lod.is_some());
         let (particles, surface) = match cut.and_then(|c| c.particles.as_ref().map(|p| (p, c))) {
             Some((p, c)) => (p, c.surface_flags()),
             None => (scene.particles(), scene.surface_flags()),
         };
-        let tiles = tile_particles(particles.len(), size, &plan.tiles)?;
-        let (image, stats) = self.render_mode(
-            scene,
-            particles,
-            surface.filter(|_| flags),
-            plan,
-            (mode, tiles),
-        )?;
+        let tiles = tile_particles(particles.len(), plan.size(), &plan.tiles)?;
+        let surface = surface.filter(|_| flags);
+        let (image, mut stats) =
+            self.render_mode(scene, particles, surface, plan, (mode, tiles))?;
+        stats.stages.insert(0, ("scene", prep_ms));
         let device = match mode {
             Mode::Adaptive => self.device(),
             _ => Renderer::cpu().device(),
@@ -129,6 +111,7 @@ impl Renderer {
             notes,
             lod,
             march_bytes: None,
+            march_bvh_bytes: None,
         })
     }
 
@@ -171,6 +154,7 @@ impl Renderer {
         let (camera, tf) = (&scene.camera, &scene.tf);
         Ok(match mode {
             Mode::Reference => render_reference(particles, camera, tf, params)?,
+            Mode::ObjectSpace => render_object_space(particles, camera, tf, params)?,
             Mode::PerspectiveGrid { cell } => {
                 render_perspective_grid(particles, camera, tf, params, cell)?
             }
@@ -222,6 +206,35 @@ impl Renderer {
             .ok_or_else(|| BackendError::Plan("the density range is the RBF field's".into()))?;
         march::density_range(scene, &plan.params, m)
     }
+}
+
+/// Makes what the render of `plan` needs of `scene`: the level-of-detail cut (with a note
+/// when it merged particles) and, with `flags`, the surface flags of what is drawn.
+fn prepare(
+    scene: &mut Scene,
+    plan: &RenderPlan,
+    flags: bool,
+    notes: &mut Vec<String>,
+) -> Result<Option<LodReport>, BackendError> {
+    let Some(t) = plan.lod else {
+        if flags {
+            scene.with_surface();
+        }
+        return Ok(None);
+    };
+    let cut = scene.cut_for(plan.size(), t)?;
+    let merged = cut.particles.is_some();
+    if flags {
+        cut.surface();
+    }
+    let report = cut.report.clone();
+    if flags && !merged {
+        scene.with_surface();
+    }
+    if merged {
+        notes.push(report.line());
+    }
+    Ok(Some(report))
 }
 
 /// Level of detail merges the rendered attribute only: iso-surfaces of another array are

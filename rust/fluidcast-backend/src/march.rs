@@ -151,6 +151,7 @@ pub(crate) struct MarchedFrame {
     pub image: Image,
     pub stats: RenderStats,
     pub field_bytes: usize,
+    pub bvh_bytes: usize,
     /// Whether the passes ran on the GPU.
     pub on_gpu: bool,
 }
@@ -181,7 +182,7 @@ pub(crate) fn render(
         params.width, params.height, params.support_depths, built.key
     );
     let key = fingerprint(&view, &depths);
-    let field_bytes = built.field.memory_bytes();
+    let (field_bytes, bvh_bytes) = (built.field.memory_bytes(), built.field.bvh().memory_bytes());
     let spp = march.params.spp.max(1);
     let most = march.progressive_passes.max(spp);
     let acc = state.accumulated.take().filter(|a| a.key == key);
@@ -196,6 +197,7 @@ pub(crate) fn render(
             image,
             stats,
             field_bytes,
+            bvh_bytes,
             on_gpu,
         });
     }
@@ -227,6 +229,7 @@ pub(crate) fn render(
         image,
         stats,
         field_bytes,
+        bvh_bytes,
         on_gpu: gpu.is_some(),
     })
 }

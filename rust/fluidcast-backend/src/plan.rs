@@ -22,6 +22,9 @@ pub enum Mode {
         /// Pixels per grid column side (1..=16).
         cell: u32,
     },
+    /// The object-space baseline of Hochstetter et al.'s comparison: every sample gathers
+    /// its particles from a world-space neighbour grid (CPU; slow, for benchmarks).
+    ObjectSpace,
 }
 
 /// Rendering one view in screen tiles, each with only the particles that reach it: the same
@@ -81,6 +84,11 @@ pub struct RenderPlan {
 pub const REFERENCE_FOR_SURFACES: &str = "rendering with the reference ray caster (exact, and it composites translucent surfaces with the volume)";
 
 impl RenderPlan {
+    /// The image size, pixels (width, height).
+    pub fn size(&self) -> (u32, u32) {
+        (self.params.width, self.params.height)
+    }
+
     /// The mode this plan renders in with `backend` asked for, and a note when the library
     /// chose it: iso-surfaces (except on an explicitly asked GPU, whose adaptive volume the
     /// surfaces stop) and a shaded volume take the reference renderer; otherwise adaptive.

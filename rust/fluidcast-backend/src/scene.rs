@@ -115,6 +115,13 @@ impl Scene {
         &self.particles
     }
 
+    /// Computes what renders of these particles at full detail share and no view changes
+    /// (their surface flags, [`SURFACE_THRESHOLD`]) now rather than in the first render:
+    /// what the VTK mapper and a benchmark do once per time step.
+    pub fn prepare(&mut self) {
+        self.with_surface();
+    }
+
     /// The particles' surface flags, if computed.
     pub(crate) fn surface_flags(&self) -> Option<&[bool]> {
         self.surface.as_deref()

@@ -4,12 +4,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use fluidcast_backend::{Mode, RenderPlan, RenderStats, Renderer, Scene};
 use fluidcast_image::{compare, Image};
 use fluidcast_io::{Arrays, Input};
-use fluidcast_render::{
-    render_adaptive, render_object_space, render_perspective_grid, render_reference, RenderStats,
-    SURFACE_THRESHOLD,
-};
 use fluidcast_sph::Particles;
 use serde_json::json;
 
@@ -71,7 +68,7 @@ pub struct BenchArgs {
 /// What every bench starts from: the render parameters and transfer function the options
 /// give, the input, its frames and those chosen, and the particles' spec.
 pub(crate) struct Setup {
-    pub base: fluidcast_render::RenderParams,
+    pub base: fluidcast_backend::RenderParams,
     pub base_tf: fluidcast_view::TransferFunction,
     pub input: Input,
     pub all: Vec<(Option<f64>, PathBuf)>,
@@ -195,6 +192,42 @@ fn baseline_row(
     Ok(row)
 }
 
+/// What the bench measured: per renderer and tolerance, over every view of every frame.
+struct Measured {
+    tols: Vec<Option<f64>>,
+    runs: Vec<Runs>,
+    gpu_runs: Vec<Runs>,
+    gpu_memory: u64,
+    reference: Runs,
+    object: Runs,
+    perspective: Runs,
+    particles: usize,
+    surface_ms: Vec<f64>,
+    frames: Vec<usize>,
+}
+
+/// The plan of one bench render: `base` at tolerance `tol`, in `mode`.
+fn plan(base: &fluidcast_backend::RenderParams, mode: Mode, tol: Option<f64>) -> RenderPlan {
+    let mut params = base.clone();
+    params.adaptive.tolerance = tol;
+    RenderPlan {
+        params,
+        mode: Some(mode),
+        ..Default::default()
+    }
+}
+
+/// The error tolerances to compare: `off` first, then `--tolerances`.
+fn tolerances(a: &BenchArgs) -> Result<Vec<Option<f64>>> {
+    let mut tols: Vec<Option<f64>> = vec![None];
+    for t in a.tolerances.split(',').filter(|t| !t.trim().is_empty()) {
+        if let Some(e) = parse_tolerance(t.trim()).context("--tolerances")? {
+            tols.push(Some(e));
+        }
+    }
+    Ok(tols)
+}
+
 pub fn run(a: BenchArgs) -> Result<()> {
     if a.views == 0 {
         bail!("--views must be at least 1");
@@ -208,129 +241,168 @@ pub fn run(a: BenchArgs) -> Result<()> {
     if let Some(l) = &a.lod {
         return crate::bench_lod::run(&a, &crate::bench_lod::tolerances(l)?);
     }
-    let mut tols: Vec<Option<f64>> = vec![None];
-    for t in a.tolerances.split(',').filter(|t| !t.trim().is_empty()) {
-        if let Some(e) = parse_tolerance(t.trim()).context("--tolerances")? {
-            tols.push(Some(e));
-        }
-    }
     // With a GPU, every adaptive render is repeated on it and reported in a second table.
     let mut sampling = a.sampling.clone();
     sampling.mode = Some(crate::view::Mode::Adaptive);
-    let backend = crate::render::open_backend(&sampling, fluidcast_backend::Mode::Adaptive)?;
-    let gpu = backend.gpu();
-    let Setup {
-        base,
-        base_tf,
-        input,
-        all,
-        frames,
-        spec,
-    } = Setup::new(&a)?;
+    let backend = crate::render::open_backend(&sampling, Mode::Adaptive)?;
+    let gpu = backend.gpu().is_some().then_some(&backend);
+    let setup = Setup::new(&a)?;
+    let m = measure(&a, &setup, tolerances(&a)?, gpu)?;
+    let rows = report_cpu(&a, &setup.base, &m)?;
+    let gpu_rows = match backend.gpu() {
+        Some(g) => report_gpu(&g.adapter, &m)?,
+        None => Vec::new(),
+    };
+    if let Some(p) = &a.json {
+        let base = &setup.base;
+        let v = json!({"input": a.input, "particles": m.particles, "width": base.width, "height": base.height,
+                       "views": a.views, "frames": m.frames, "bundle": base.grid.bundle, "depth_samples": base.grid.depth_samples,
+                       "relax": base.adaptive.relax, "superpixels": base.adaptive.superpixels,
+                       "surface_cells": base.adaptive.surface_cells, "surface_flags_ms_per_frame": median(&mut m.surface_ms.clone()), "rows": rows,
+                       "gpu": backend.gpu().map(|g| json!({"adapter": g.adapter, "memory_bytes": m.gpu_memory, "rows": gpu_rows}))});
+        std::fs::write(p, serde_json::to_string_pretty(&v)?)
+            .with_context(|| format!("writing {}", p.display()))?;
+        eprintln!("wrote {}", p.display());
+    }
+    Ok(())
+}
+
+/// Renders every view of every frame with each renderer and tolerance, through the library's
+/// one entry point (the CPU renderer, and `gpu` when there is one).
+fn measure(
+    a: &BenchArgs,
+    s: &Setup,
+    tols: Vec<Option<f64>>,
+    gpu: Option<&Renderer>,
+) -> Result<Measured> {
     let per_view = tols.len() * (1 + usize::from(gpu.is_some()))
         + usize::from(!a.no_reference)
         + usize::from(a.object_space)
         + usize::from(a.perspective_grid);
-    let pb = crate::render::progress_bar(frames.len() * a.views * per_view, "renders");
-    let mut runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
-    let mut gpu_runs: Vec<Runs> = (0..tols.len()).map(|_| Runs::default()).collect();
-    let mut gpu_memory = 0u64;
-    let mut reference = Runs::default();
-    let mut object = Runs::default();
-    let mut perspective = Runs::default();
-    let mut setup = None;
-    let mut particles_n = 0;
-    let mut surface_ms: Vec<f64> = Vec::new();
-    for &fi in &frames {
-        let file = &all[fi].1;
-        let particles = frame_particles(&input, &all[fi], &spec)?;
-        particles_n = particles_n.max(particles.len());
+    let pb = crate::render::progress_bar(s.frames.len() * a.views * per_view, "renders");
+    let mut m = Measured {
+        runs: (0..tols.len()).map(|_| Runs::default()).collect(),
+        gpu_runs: (0..tols.len()).map(|_| Runs::default()).collect(),
+        tols,
+        gpu_memory: 0,
+        reference: Runs::default(),
+        object: Runs::default(),
+        perspective: Runs::default(),
+        particles: 0,
+        surface_ms: Vec::new(),
+        frames: s.frames.clone(),
+    };
+    let mut first = None;
+    for &fi in &s.frames {
+        let file = &s.all[fi].1;
+        let particles = frame_particles(&s.input, &s.all[fi], &s.spec)?;
+        m.particles = m.particles.max(particles.len());
+        let (cam0, tf) = match &first {
+            Some(v) => v,
+            None => first.insert(a.view.setup(&particles, &s.base, &s.base_tf, false)?),
+        };
+        let mut scene = Scene::new(particles, cam0.clone(), tf.clone());
         // View-independent: once per time step, reused by every view (as the VTK mapper does).
         let t = Instant::now();
-        let surface = base
-            .adaptive
-            .surface_cells
-            .then(|| particles.surface_flags(SURFACE_THRESHOLD));
-        surface_ms.push(ms(t));
-        let (cam0, tf) = match &setup {
-            Some(s) => s,
-            None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),
-        };
+        if s.base.adaptive.surface_cells {
+            scene.prepare();
+        }
+        m.surface_ms.push(ms(t));
         for v in 0..a.views {
-            let cam = orbit(cam0, v, a.views);
+            scene.camera = orbit(cam0, v, a.views);
             pb.set_message(format!("frame {fi}, view {v}"));
-            if !a.no_reference {
-                let (_, s) = render_reference(&particles, &cam, tf, &base)
-                    .with_context(|| format!("rendering {}", file.display()))?;
-                reference.add(&s);
-                pb.inc(1);
-            }
-            if a.object_space {
-                let (_, s) = render_object_space(&particles, &cam, tf, &base)
-                    .with_context(|| format!("rendering {}", file.display()))?;
-                object.add(&s);
-                pb.inc(1);
-            }
-            if a.perspective_grid {
-                let cell = a.sampling.grid_cell;
-                let (_, s) = render_perspective_grid(&particles, &cam, tf, &base, cell)
-                    .with_context(|| format!("rendering {}", file.display()))?;
-                perspective.add(&s);
-                pb.inc(1);
-            }
-            let mut off_img: Option<Image> = None;
-            for (t, tol) in tols.iter().enumerate() {
-                let mut prm = base.clone();
-                prm.adaptive.tolerance = *tol;
-                let r = render_adaptive(&particles, surface.as_deref(), &cam, tf, &prm)
-                    .with_context(|| format!("rendering {}", file.display()))?;
-                runs[t].add(&r.stats);
-                if let Some(g) = gpu {
-                    let rg = g
-                        .render_adaptive(&particles, surface.as_deref(), &cam, tf, &prm)
-                        .with_context(|| format!("rendering {} on the GPU", file.display()))?;
-                    let (c, _) = compare(&r.image, &rg.image, 1e-3)?;
-                    let gr = &mut gpu_runs[t];
-                    gr.add(&rg.stats);
-                    gr.max_err = gr.max_err.max(c.max_abs);
-                    gr.frac_above.push(c.frac_above);
-                    gpu_memory = gpu_memory.max(rg.stats.gpu_memory_bytes);
-                    pb.inc(1);
-                }
-                match (&off_img, tol) {
-                    (None, _) => off_img = Some(r.image),
-                    (Some(off), Some(e)) => {
-                        let (c, _) = compare(off, &r.image, *e)?;
-                        let rr = &mut runs[t];
-                        rr.max_err = rr.max_err.max(c.max_abs);
-                        rr.frac_above.push(c.frac_above);
-                        rr.views_above += usize::from(c.max_abs > *e);
-                    }
-                    _ => {}
-                }
-                pb.inc(1);
-            }
+            measure_view(a, s, &mut scene, gpu, &mut m, &pb)
+                .with_context(|| format!("rendering {}", file.display()))?;
         }
     }
     pb.finish_and_clear();
+    Ok(m)
+}
+
+/// One view: the baselines asked for, then the adaptive renderer at each tolerance (on the
+/// CPU, and on the GPU when there is one), with errors against `off` and against the CPU.
+fn measure_view(
+    a: &BenchArgs,
+    s: &Setup,
+    scene: &mut Scene,
+    gpu: Option<&Renderer>,
+    m: &mut Measured,
+    pb: &indicatif::ProgressBar,
+) -> Result<()> {
+    let cpu = Renderer::cpu();
+    let cell = a.sampling.grid_cell;
+    let baselines = [
+        (!a.no_reference, Mode::Reference),
+        (a.object_space, Mode::ObjectSpace),
+        (a.perspective_grid, Mode::PerspectiveGrid { cell }),
+    ];
+    for (_, mode) in baselines.into_iter().filter(|b| b.0) {
+        let r = cpu.render(scene, &plan(&s.base, mode, s.base.adaptive.tolerance))?;
+        match mode {
+            Mode::Reference => &mut m.reference,
+            Mode::ObjectSpace => &mut m.object,
+            _ => &mut m.perspective,
+        }
+        .add(&r.stats);
+        pb.inc(1);
+    }
+    let mut off_img: Option<Image> = None;
+    for (t, tol) in m.tols.clone().iter().enumerate() {
+        let p = plan(&s.base, Mode::Adaptive, *tol);
+        let r = cpu.render(scene, &p)?;
+        m.runs[t].add(&r.stats);
+        if let Some(g) = gpu {
+            let rg = g.render(scene, &p).context("on the GPU")?;
+            let (c, _) = compare(&r.image, &rg.image, 1e-3)?;
+            let gr = &mut m.gpu_runs[t];
+            gr.add(&rg.stats);
+            gr.max_err = gr.max_err.max(c.max_abs);
+            gr.frac_above.push(c.frac_above);
+            m.gpu_memory = m.gpu_memory.max(rg.stats.gpu_memory_bytes);
+            pb.inc(1);
+        }
+        match (&off_img, tol) {
+            (None, _) => off_img = Some(r.image),
+            (Some(off), Some(e)) => {
+                let (c, _) = compare(off, &r.image, *e)?;
+                let rr = &mut m.runs[t];
+                rr.max_err = rr.max_err.max(c.max_abs);
+                rr.frac_above.push(c.frac_above);
+                rr.views_above += usize::from(c.max_abs > *e);
+            }
+            _ => {}
+        }
+        pb.inc(1);
+    }
+    Ok(())
+}
+
+/// Prints the CPU table (the baselines, then each tolerance) and returns its JSON rows.
+fn report_cpu(
+    a: &BenchArgs,
+    base: &fluidcast_backend::RenderParams,
+    m: &Measured,
+) -> Result<Vec<serde_json::Value>> {
+    let (runs, tols) = (&m.runs, &m.tols);
+    let (reference, object, perspective) = (&m.reference, &m.object, &m.perspective);
 
     let off_total = runs[0].median("total");
     let off_rc = runs[0].median("raycast");
     out!(
         "{} ({} particles), {}x{}, {} view(s) x {} frame(s), D_xy {} D_z {}, relax {}, super-pixels {}, surface cells {}; medians in ms",
         a.input.display(),
-        particles_n,
+        m.particles,
         base.width,
         base.height,
         a.views,
-        frames.len(),
+        m.frames.len(),
         base.grid.bundle,
         base.grid.depth_samples,
         base.adaptive.relax,
         base.adaptive.superpixels,
         base.adaptive.surface_cells
     );
-    let surface_median = median(&mut surface_ms);
+    let surface_median = median(&mut m.surface_ms.clone());
     if base.adaptive.surface_cells {
         out!(
             "surface flags: {surface_median:.1} ms per frame (view-independent: computed once per time step and reused by every view, as the VTK mapper does; not in the rows below)"
@@ -353,7 +425,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         rows.push(baseline_row(
             "reference",
             "reference",
-            &reference,
+            reference,
             "bin",
             off_total,
         )?);
@@ -362,7 +434,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         rows.push(baseline_row(
             "object",
             "object-space",
-            &object,
+            object,
             "grid",
             off_total,
         )?);
@@ -371,7 +443,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         rows.push(baseline_row(
             "persp-grid",
             "perspective-grid",
-            &perspective,
+            perspective,
             "resample",
             off_total,
         )?);
@@ -415,11 +487,17 @@ pub fn run(a: BenchArgs) -> Result<()> {
                          "max_error": r.max_err, "percent_pixels_above": share, "views_above": r.views_above,
                          "views": r.stages.len(), "samples": r.samples}));
     }
+    Ok(rows)
+}
+
+/// Prints the GPU table (adapter `adapter`) and returns its JSON rows.
+fn report_gpu(adapter: &str, m: &Measured) -> Result<Vec<serde_json::Value>> {
+    let (runs, gpu_runs, tols, gpu_memory) = (&m.runs, &m.gpu_runs, &m.tols, m.gpu_memory);
     let mut gpu_rows = Vec::new();
-    if let Some(g) = gpu {
+    {
         out!(
             "\nGPU (every stage) on {}; GPU memory held {:.1} MiB; medians in ms (wall clock, then GPU timestamps)",
-            g.adapter,
+            adapter,
             gpu_memory as f64 / (1024.0 * 1024.0)
         );
         let kernels = ["gpu_grid", "gpu_sort", "gpu_adapt", "gpu_raycast"];
@@ -475,15 +553,5 @@ pub fn run(a: BenchArgs) -> Result<()> {
                                  "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share}));
         }
     }
-    if let Some(p) = &a.json {
-        let v = json!({"input": a.input, "particles": particles_n, "width": base.width, "height": base.height,
-                       "views": a.views, "frames": frames, "bundle": base.grid.bundle, "depth_samples": base.grid.depth_samples,
-                       "relax": base.adaptive.relax, "superpixels": base.adaptive.superpixels,
-                       "surface_cells": base.adaptive.surface_cells, "surface_flags_ms_per_frame": surface_median, "rows": rows,
-                       "gpu": gpu.as_ref().map(|g| json!({"adapter": g.adapter, "memory_bytes": gpu_memory, "rows": gpu_rows}))});
-        std::fs::write(p, serde_json::to_string_pretty(&v)?)
-            .with_context(|| format!("writing {}", p.display()))?;
-        eprintln!("wrote {}", p.display());
-    }
-    Ok(())
+    Ok(gpu_rows)
 }

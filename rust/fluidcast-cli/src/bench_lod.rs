@@ -1,17 +1,12 @@
 //! `fluidcast bench --lod T1,T2,…`: the default (adaptive) render of per-view cuts through the
 //! particle hierarchy against full detail: time per view, particles, and the image error.
 
-use std::time::Instant;
-
 use anyhow::{bail, Context, Result};
-use fluidcast_image::{compare, Image};
-use fluidcast_lod::LodHierarchy;
-use fluidcast_render::{render_adaptive, RenderParams, SURFACE_THRESHOLD};
-use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
+use fluidcast_backend::{Mode, RenderParams, RenderPlan, Rendered, Renderer, Scene};
+use fluidcast_image::compare;
 use serde_json::json;
 
-use crate::bench::{frame_particles, ms, orbit, BenchArgs, Setup};
+use crate::bench::{frame_particles, orbit, BenchArgs, Setup};
 
 /// Parses `--lod` (comma-separated tolerances in pixels, each finite and >= 0).
 pub fn tolerances(s: &str) -> Result<Vec<f64>> {
@@ -52,86 +47,70 @@ impl Row {
     }
 }
 
-/// The default render of `p` (surface flags given, or computed here and timed).
-fn render(
-    p: &Particles,
-    surface: Option<&[bool]>,
-    cam: &Camera,
-    tf: &TransferFunction,
-    prm: &RenderParams,
-) -> Result<(Image, f64, f64)> {
-    let t = Instant::now();
-    let own;
-    let surface = match surface {
-        Some(s) => Some(s),
-        None if prm.adaptive.surface_cells => {
-            own = p.surface_flags(SURFACE_THRESHOLD);
-            Some(own.as_slice())
-        }
-        None => None,
-    };
-    let surface_ms = ms(t);
-    let r = render_adaptive(p, surface, cam, tf, prm)?;
-    let total = r
-        .stats
+/// The stage `name` of a render's statistics, milliseconds (0 when absent).
+fn stage(r: &Rendered, name: &str) -> f64 {
+    r.stats
         .stages
         .iter()
-        .find(|s| s.0 == "total")
-        .map_or(f64::NAN, |s| s.1);
-    Ok((r.image, surface_ms, total))
+        .find(|s| s.0 == name)
+        .map_or(0.0, |s| s.1)
 }
 
 pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
-    let Setup {
-        base,
-        base_tf,
-        input,
-        all,
-        frames,
-        spec,
-    } = Setup::new(a)?;
-    let pb = crate::render::progress_bar(frames.len() * a.views * (1 + lods.len()), "renders");
+    let s = Setup::new(a)?;
+    let pb = crate::render::progress_bar(s.frames.len() * a.views * (1 + lods.len()), "renders");
     let mut full = Row::default();
     let mut rows: Vec<Row> = lods.iter().map(|_| Row::default()).collect();
     let mut builds = Vec::new();
-    let mut setup = None;
-    for &fi in &frames {
-        let file = &all[fi].1;
-        let particles = frame_particles(&input, &all[fi], &spec)?;
-        let (cam0, tf) = match &setup {
-            Some(s) => s,
-            None => setup.insert(a.view.setup(&particles, &base, &base_tf, false)?),
+    let mut first = None;
+    let cpu = Renderer::cpu();
+    let plan = |lod| RenderPlan {
+        params: s.base.clone(),
+        mode: Some(Mode::Adaptive),
+        lod,
+        ..Default::default()
+    };
+    for &fi in &s.frames {
+        let file = &s.all[fi].1;
+        let particles = frame_particles(&s.input, &s.all[fi], &s.spec)?;
+        let (cam0, tf) = match &first {
+            Some(v) => v,
+            None => first.insert(a.view.setup(&particles, &s.base, &s.base_tf, false)?),
         };
-        // View-independent, once per time step: the hierarchy, and full detail's surface flags.
-        let t = Instant::now();
-        let h = LodHierarchy::build(particles).context("building the particle hierarchy")?;
-        builds.push((ms(t), h.levels(), h.memory_bytes()));
-        let p = h.full_detail();
-        let surface = base
-            .adaptive
-            .surface_cells
-            .then(|| p.surface_flags(SURFACE_THRESHOLD));
+        // View-independent, once per time step: full detail's surface flags, and the
+        // hierarchy (built by the first cut, its time reported apart).
+        let mut scene = Scene::new(particles, cam0.clone(), tf.clone());
+        scene.prepare();
+        let mut built = false;
         for v in 0..a.views {
-            let cam = orbit(cam0, v, a.views);
+            scene.camera = orbit(cam0, v, a.views);
             pb.set_message(format!("frame {fi}, view {v}"));
-            let (reference, _, t_full) = render(p, surface.as_deref(), &cam, tf, &base)
+            let reference = cpu
+                .render(&mut scene, &plan(None))
                 .with_context(|| format!("rendering {}", file.display()))?;
-            full.render_ms.push(t_full);
-            full.particles.push(p.len());
+            full.render_ms.push(stage(&reference, "total"));
+            full.particles.push(scene.particles().len());
             pb.inc(1);
-            let frame = cam.frame(base.width, base.height)?;
             for (row, &tol) in rows.iter_mut().zip(lods) {
-                let t = Instant::now();
-                let c = h.cut(&frame, tol)?;
-                row.cut_ms.push(ms(t));
-                // Nothing merged: full detail, whose surface flags are at hand.
-                let flags = surface.as_deref().filter(|_| c.is_full_detail());
-                let (img, s_ms, r_ms) = render(&c.particles, flags, &cam, tf, &base)
+                let r = cpu
+                    .render(&mut scene, &plan(Some(tol)))
                     .with_context(|| format!("rendering {} at --lod {tol}", file.display()))?;
-                row.surface_ms.push(s_ms);
-                row.render_ms.push(r_ms);
-                row.particles.push(c.particles.len());
-                let (e, _) = compare(&reference, &img, 1.0 / 255.0)?;
+                let Some(l) = &r.lod else {
+                    bail!("--lod {tol}: the render made no cut");
+                };
+                // This render's scene stage: the hierarchy (the first cut of a frame builds
+                // it), the cut, and the cut's surface flags (none when it merged nothing).
+                let build_ms = if built { 0.0 } else { l.build_ms };
+                if !built {
+                    builds.push((l.build_ms, l.levels, l.hierarchy_bytes));
+                    built = true;
+                }
+                row.cut_ms.push(l.cut_ms);
+                row.surface_ms
+                    .push((stage(&r, "scene") - l.cut_ms - build_ms).max(0.0));
+                row.render_ms.push(stage(&r, "total"));
+                row.particles.push(l.rendered);
+                let (e, _) = compare(&reference.image, &r.image, 1.0 / 255.0)?;
                 row.rmse = row.rmse.max(e.rmse);
                 row.max_abs = row.max_abs.max(e.max_abs);
                 row.frac_above = row.frac_above.max(e.frac_above);
@@ -140,7 +119,7 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
         }
     }
     pb.finish_and_clear();
-    report(a, &base, (&full, &rows, lods), &builds)
+    report(a, &s.base, (&full, &rows, lods), &builds)
 }
 
 /// Prints the table and writes `--json`.

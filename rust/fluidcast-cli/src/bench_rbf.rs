@@ -4,8 +4,7 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_rbf::{RbfField, MAX_LEAF_SIZE};
-use fluidcast_render::render_rbf;
+use fluidcast_backend::{March, Marched, RenderPlan, Renderer, Scene, MAX_LEAF_SIZE};
 use serde_json::json;
 
 use crate::bench::{frame_particles, ms, orbit, BenchArgs, Setup};
@@ -55,6 +54,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     let pb = crate::render::progress_bar(frames.len() * leaves.len() * a.views, "renders");
     let mut setup = None;
     let mut rows = Vec::new();
+    let cpu = Renderer::cpu();
     for &fi in &frames {
         let file = &all[fi].1;
         let t = Instant::now();
@@ -66,34 +66,52 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         };
         for &leaf in &leaves {
             opts.leaf_size = leaf;
-            let t = Instant::now();
-            let mut field = RbfField::build(&particles, tf, &opts)
-                .with_context(|| format!("building the RBF field of {}", file.display()))?;
-            let build_ms = ms(t);
-            let t = Instant::now();
-            field.set_radius_map(&opts.radius_map)?;
-            let refit_ms = ms(t);
-            let rp = a.rbf.render_params(cam0, a.light.as_deref())?;
+            // A new scene per leaf size: the first view builds the field (stage bvh) and
+            // times one refit (stage refit); the other views reuse it.
+            let mut scene = Scene::new(particles.clone(), cam0.clone(), tf.clone());
+            let mut plan = RenderPlan {
+                params: base.clone(),
+                march: Some(March {
+                    field: Marched::Rbf(opts.clone()),
+                    params: a.rbf.render_params(cam0, a.light.as_deref())?,
+                    progressive_passes: 0,
+                    time_refit: true,
+                }),
+                ..Default::default()
+            };
             let mut row = Row {
                 frame: fi,
                 particles: particles.len(),
                 leaf,
                 read_ms,
-                build_ms,
-                refit_ms,
+                build_ms: 0.0,
+                refit_ms: 0.0,
                 render_ms: Vec::new(),
-                bytes: field.memory_bytes(),
-                bvh_bytes: field.bvh().memory_bytes(),
+                bytes: 0,
+                bvh_bytes: 0,
                 samples: 0,
             };
             for v in 0..a.views {
-                let cam = orbit(cam0, v, a.views);
+                scene.camera = orbit(cam0, v, a.views);
                 pb.set_message(format!("frame {fi}, leaf {leaf}, view {v}"));
                 let t = Instant::now();
-                let (_, s) = render_rbf(&field, &cam, tf, &base, &rp)
+                let r = cpu
+                    .render(&mut scene, &plan)
                     .with_context(|| format!("rendering {}", file.display()))?;
-                row.render_ms.push(ms(t));
-                row.samples += s.samples;
+                let stage = |name| r.stats.stages.iter().find(|s| s.0 == name).map(|s| s.1);
+                let (bvh, refit) = (stage("bvh"), stage("refit").unwrap_or(0.0));
+                if let Some(b) = bvh {
+                    (row.build_ms, row.refit_ms) = (b, refit);
+                }
+                // The render alone: the build and the refit are columns of their own.
+                let built = bvh.unwrap_or(0.0) + refit;
+                row.render_ms.push((ms(t) - built).max(0.0));
+                row.bytes = r.march_bytes.unwrap_or(0);
+                row.bvh_bytes = r.march_bvh_bytes.unwrap_or(0);
+                row.samples += r.stats.samples;
+                if let Some(m) = &mut plan.march {
+                    m.time_refit = false; // once per field, as the build
+                }
                 pb.inc(1);
             }
             rows.push(row);
@@ -103,7 +121,7 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     report(a, &base, &rows)
 }
 
-fn report(a: &BenchArgs, base: &fluidcast_render::RenderParams, rows: &[Row]) -> Result<()> {
+fn report(a: &BenchArgs, base: &fluidcast_backend::RenderParams, rows: &[Row]) -> Result<()> {
     out!(
         "{}: RBF field, {}x{}, {} view(s) a frame, --spp {}{}; times in ms (render: median over views)",
         a.input.display(),

@@ -133,10 +133,10 @@ impl SplitArgs {
 /// says where frames render.
 pub fn open_backend(s: &SamplingArgs, mode: Mode) -> Result<Renderer> {
     let r = match (s.backend, mode) {
-        (Backend::Gpu, Mode::Reference | Mode::PerspectiveGrid { .. }) => {
+        (Backend::Gpu, Mode::Reference | Mode::PerspectiveGrid { .. } | Mode::ObjectSpace) => {
             bail!("--backend gpu renders the adaptive mode only (drop --mode)")
         }
-        (_, Mode::Reference | Mode::PerspectiveGrid { .. }) => Renderer::cpu(),
+        (_, Mode::Reference | Mode::PerspectiveGrid { .. } | Mode::ObjectSpace) => Renderer::cpu(),
         (b, Mode::Adaptive) => without_wayland_noise(|| Renderer::open(b, s.adapter.as_deref()))
             .with_context(|| format!("--backend {b}"))?,
     };
