@@ -273,6 +273,7 @@ vtkFluidCastVolumeMapper::vtkFluidCastVolumeMapper()
   this->SetIsoSurfaceField("colour");
   this->SetField("csph");
   this->SetRBFClassification("post");
+  this->SetMode("auto");
 }
 
 //------------------------------------------------------------------------------
@@ -284,6 +285,7 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
   this->SetField(nullptr);
   this->SetRBFClassification(nullptr);
   this->SetIsoSurfaceField(nullptr);
+  this->SetMode(nullptr);
 }
 
 //------------------------------------------------------------------------------
@@ -302,6 +304,12 @@ std::string NameAt(const rust::Vec<rust::String>& names, int index)
   return index >= 0 && static_cast<size_t>(index) < names.size() ? std::string(names[index])
                                                                  : std::string();
 }
+}
+
+//------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetModeName(int index)
+{
+  return NameAt(fluidcast::mode_names(), index);
 }
 
 //------------------------------------------------------------------------------
@@ -527,6 +535,13 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.adapter = this->Adapter ? this->Adapter : "";
     s.memory_limit_mib = this->MemoryLimit;
     s.lod_tolerance = this->LODTolerance;
+    s.mode = this->Mode ? this->Mode : "";
+    s.grid_cell = static_cast<uint32_t>(this->GridCell);
+    s.probe = this->Probe != 0;
+    s.superpixels = this->SuperPixels != 0;
+    s.surface_cells = this->SurfaceCells != 0;
+    s.interpolate = this->Interpolation != 0;
+    s.tiles = static_cast<uint32_t>(this->Tiles);
     r.configure(s);
     fluidcast::RenderInfo info = r.prepare();
     this->LastParticleCount = static_cast<vtkIdType>(info.particles);
@@ -722,6 +737,7 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
       rust::Slice<const float>(limit.data(), limit.size()),
       rust::Slice<float>(rgba.data(), rgba.size()), rust::Slice<float>(depth.data(), depth.size()));
     this->LastSamples = static_cast<vtkIdType>(info.samples);
+    this->LastTiles = static_cast<vtkIdType>(info.tiles);
     std::string device(info.device);
     if (device != this->LastDevice)
     {
@@ -854,6 +870,13 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
   os << indent << "MemoryLimit: " << this->MemoryLimit << " MiB\n";
   os << indent << "LODTolerance: " << this->LODTolerance << " px\n";
+  os << indent << "Mode: " << (this->Mode ? this->Mode : "auto") << "\n";
+  os << indent << "GridCell: " << this->GridCell << " px\n";
+  os << indent << "Probe: " << this->Probe << "\n";
+  os << indent << "SuperPixels: " << this->SuperPixels << "\n";
+  os << indent << "SurfaceCells: " << this->SurfaceCells << "\n";
+  os << indent << "Interpolation: " << this->Interpolation << "\n";
+  os << indent << "Tiles: " << this->Tiles << "\n";
   os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";

@@ -217,6 +217,51 @@ public:
 
   ///@{
   /**
+   * How the volume is sampled, as `fluidcast render --mode`: "auto" (default: adaptive, or the
+   * exact reference caster with iso-surfaces unless Backend is GPU), "adaptive", "reference" or
+   * "perspective-grid" (Fraedrich et al. 2010, GridCell pixels per column, 1..64). GetModeName
+   * gives the names by index (ParaView's FluidCastMode).
+   */
+  vtkSetStringMacro(Mode);
+  vtkGetStringMacro(Mode);
+  vtkSetClampMacro(GridCell, int, 1, 64);
+  vtkGetMacro(GridCell, int);
+  static std::string GetModeName(int index);
+  ///@}
+
+  ///@{
+  /**
+   * The adaptive plan's switches (all on by default), as the CLI's --no-probe,
+   * --no-superpixels, --no-surface-cells and --no-interpolation turn them off: the probe of
+   * an eighth of the bundles first, super-pixels, cells with surface particles forced to full
+   * rate, image-space interpolation in the relaxed mode.
+   */
+  vtkSetMacro(Probe, vtkTypeBool);
+  vtkGetMacro(Probe, vtkTypeBool);
+  vtkBooleanMacro(Probe, vtkTypeBool);
+  vtkSetMacro(SuperPixels, vtkTypeBool);
+  vtkGetMacro(SuperPixels, vtkTypeBool);
+  vtkBooleanMacro(SuperPixels, vtkTypeBool);
+  vtkSetMacro(SurfaceCells, vtkTypeBool);
+  vtkGetMacro(SurfaceCells, vtkTypeBool);
+  vtkBooleanMacro(SurfaceCells, vtkTypeBool);
+  vtkSetMacro(Interpolation, vtkTypeBool);
+  vtkGetMacro(Interpolation, vtkTypeBool);
+  vtkBooleanMacro(Interpolation, vtkTypeBool);
+  ///@}
+
+  ///@{
+  /**
+   * Render each view in at least this many screen tiles (the CLI's --tiles; the same image in
+   * less memory). 0 (default): as MemoryLimit needs. GetLastTiles: the tiles of the last frame.
+   */
+  vtkSetClampMacro(Tiles, int, 0, 65536);
+  vtkGetMacro(Tiles, int);
+  vtkGetMacro(LastTiles, vtkIdType);
+  ///@}
+
+  ///@{
+  /**
    * Iso-surfaces, as vtkGPUVolumeRayCastMapper draws them: with BlendMode
    * vtkVolumeMapper::ISOSURFACE_BLEND the surfaces at the vtkVolumeProperty's
    * GetIsoSurfaceValues() are drawn, found exactly along each ray and lit with the property's
@@ -378,6 +423,14 @@ protected:
   char* Adapter = nullptr;
   double MemoryLimit = 0.0;
   double LODTolerance = 0.0;
+  char* Mode = nullptr;
+  int GridCell = 1;
+  vtkTypeBool Probe = 1;
+  vtkTypeBool SuperPixels = 1;
+  vtkTypeBool SurfaceCells = 1;
+  vtkTypeBool Interpolation = 1;
+  int Tiles = 0;
+  vtkIdType LastTiles = 0;
   int VectorMode = -1;
   int VectorComponent = 0;
   int BlendMode = vtkVolumeMapper::COMPOSITE_BLEND;

@@ -378,6 +378,43 @@ void vtkFluidCastRepresentation::SetBackend(int backend)
   this->Mapper->SetBackend(backend);
 }
 
+void vtkFluidCastRepresentation::SetMode(int mode)
+{
+  // The names and their order come from the Rust side (fluidcast_backend::Mode::NAMES).
+  std::string name = vtkFluidCastVolumeMapper::GetModeName(mode);
+  this->Mapper->SetMode(name.empty() ? "auto" : name.c_str());
+}
+
+void vtkFluidCastRepresentation::SetGridCell(int px)
+{
+  this->Mapper->SetGridCell(px);
+}
+
+void vtkFluidCastRepresentation::SetProbe(int on)
+{
+  this->Mapper->SetProbe(on);
+}
+
+void vtkFluidCastRepresentation::SetSuperPixels(int on)
+{
+  this->Mapper->SetSuperPixels(on);
+}
+
+void vtkFluidCastRepresentation::SetSurfaceCells(int on)
+{
+  this->Mapper->SetSurfaceCells(on);
+}
+
+void vtkFluidCastRepresentation::SetInterpolation(int on)
+{
+  this->Mapper->SetInterpolation(on);
+}
+
+void vtkFluidCastRepresentation::SetTiles(int tiles)
+{
+  this->Mapper->SetTiles(tiles);
+}
+
 void vtkFluidCastRepresentation::SetAdapter(const char* name)
 {
   this->Mapper->SetAdapter(name && name[0] ? name : nullptr);
@@ -403,6 +440,16 @@ void vtkFluidCastRepresentation::SetMaximumImageSampleDistance(int s)
 const char* vtkFluidCastRepresentation::GetLastError()
 {
   return this->Mapper->GetLastError();
+}
+
+const char* vtkFluidCastRepresentation::GetLastDevice()
+{
+  return this->Mapper->GetLastDevice();
+}
+
+vtkIdType vtkFluidCastRepresentation::GetLastTiles()
+{
+  return this->Mapper->GetLastTiles();
 }
 
 //------------------------------------------------------------------------------

@@ -61,6 +61,17 @@ public:
   void SetLODTolerance(double px);
   void SetBackend(int backend);
   void SetAdapter(const char* name);
+  /**
+   * The mapper's sampling: Mode (0 auto, 1 adaptive, 2 reference, 3 perspective grid: the
+   * Rust side's list), GridCell, the plan's switches and Tiles.
+   */
+  void SetMode(int mode);
+  void SetGridCell(int px);
+  void SetProbe(int on);
+  void SetSuperPixels(int on);
+  void SetSurfaceCells(int on);
+  void SetInterpolation(int on);
+  void SetTiles(int tiles);
   ///@}
 
   ///@{
@@ -128,6 +139,10 @@ public:
   vtkGetVector6Macro(Region, double);
   /** The mapper's last error ("" when its last render succeeded). */
   const char* GetLastError();
+  /** The mapper's last frame: where it rendered ("CPU (N threads)", "GPU: adapter"). */
+  const char* GetLastDevice();
+  /** The mapper's last frame: the screen tiles it rendered in (0: one render). */
+  vtkIdType GetLastTiles();
   ///@}
 
 protected:

@@ -34,7 +34,8 @@ pub use fluidcast_rbf::{
 };
 pub use fluidcast_render::{
     crop_to_box, support_depth_extent, GridParams, IsoField, Noise, PlanParams, RbfRenderParams,
-    RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_SIDE, MIN_TILE_BYTES,
+    RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_CELL, MAX_SIDE,
+    MIN_TILE_BYTES,
 };
 
 /// Where the adaptive renderer runs.

@@ -27,6 +27,28 @@ pub enum Mode {
     ObjectSpace,
 }
 
+impl Mode {
+    /// The names front-ends give the mode (the CLI's `--mode`, the mapper's Mode), in the
+    /// order of ParaView's `FluidCastMode` after its first entry, "auto" (the library's
+    /// choice). The perspective grid takes its cell size apart.
+    pub const NAMES: [&'static str; 4] = ["auto", "adaptive", "reference", "perspective-grid"];
+
+    /// The mode `name` names ([`Mode::NAMES`]; "" and "auto": `None`, the library's choice),
+    /// with `cell` pixels per perspective-grid column.
+    pub fn parse(name: &str, cell: u32) -> Result<Option<Mode>, String> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "" | "auto" => Ok(None),
+            "adaptive" => Ok(Some(Mode::Adaptive)),
+            "reference" => Ok(Some(Mode::Reference)),
+            "perspective-grid" => Ok(Some(Mode::PerspectiveGrid { cell })),
+            other => Err(format!(
+                "mode '{other}': expected one of {}",
+                Mode::NAMES.join(", ")
+            )),
+        }
+    }
+}
+
 /// Rendering one view in screen tiles, each with only the particles that reach it: the same
 /// image in less memory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -103,6 +103,20 @@ mod ffi {
         /// RBF: the radius map, pairs of position on the colour map's range (0..1) and
         /// radius factor (>= 0; 0 hides); empty: 1 everywhere. A change refits the BVH.
         radius_map: Vec<f64>,
+        /// The mode as the CLI's `--mode` ("" or "auto": the library's choice; adaptive,
+        /// reference, perspective-grid).
+        mode: String,
+        /// Perspective grid: pixels per grid column side (the CLI's `--grid-cell`, 1..=64).
+        grid_cell: u32,
+        /// The adaptive plan's switches, as the CLI's `--no-probe`, `--no-superpixels`,
+        /// `--no-surface-cells` and `--no-interpolation` turn them off.
+        probe: bool,
+        superpixels: bool,
+        surface_cells: bool,
+        interpolate: bool,
+        /// Render each view in at least this many screen tiles (the CLI's `--tiles`; 0: as
+        /// the memory limit needs).
+        tiles: u32,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -142,6 +156,8 @@ mod ffi {
         notes: String,
         /// Where the frame rendered: "CPU (N threads)" or "GPU: <adapter>".
         device: String,
+        /// Screen tiles the view rendered in (0: one render).
+        tiles: u64,
     }
 
     /// One time step of a `.pvd` series (`vtkFluidCastReader`'s time steps).
@@ -191,6 +207,8 @@ mod ffi {
         /// `Settings::rbf_classification`'s names in the order of ParaView's
         /// FluidCastRBFClassification enumeration.
         fn rbf_classification_names() -> Vec<String>;
+        /// `Settings::mode`'s names in the order of ParaView's FluidCastMode enumeration.
+        fn mode_names() -> Vec<String>;
         /// The kernel names `Settings::kernel` takes, in the order of ParaView's
         /// `FluidCastKernel` (cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian).
         fn kernel_names() -> Vec<String>;
@@ -290,6 +308,10 @@ struct OpenBackend {
 
 fn kernel_names() -> Vec<String> {
     Kernel::ALL.iter().map(|k| k.name().to_string()).collect()
+}
+
+fn mode_names() -> Vec<String> {
+    fluidcast_backend::Mode::NAMES.map(str::to_string).to_vec()
 }
 
 fn rbf_classification_names() -> Vec<String> {
@@ -456,6 +478,7 @@ impl Renderer {
                 .parse::<Kernel>()
                 .map_err(|e| format!("kernel: {e}"))?;
             plan::check_field(&s.field)?;
+            plan::check_sampling(s)?;
             backend_of(s.backend)?;
             if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
                 return Err(format!(
@@ -773,6 +796,7 @@ fn finish(
     depth.copy_from_slice(&r.image.depth);
     ffi::RenderInfo {
         samples: r.stats.samples,
+        tiles: r.stats.tiles as u64,
         total_ms: started.elapsed().as_secs_f64() * 1e3,
         notes: notes.join("\n"),
         device: r.device.clone(),
@@ -858,6 +882,13 @@ mod tests {
             light: [0.0; 3],
             shadow_ambient: 0.25,
             radius_map: Vec::new(),
+            mode: String::new(),
+            grid_cell: 1,
+            probe: true,
+            superpixels: true,
+            surface_cells: true,
+            interpolate: true,
+            tiles: 0,
         }
     }
 

@@ -4,8 +4,8 @@
 use std::sync::Arc;
 
 use fluidcast_backend::{
-    AttributeMap, BackendError, Colouring, March, Marched, PlanItem, PlanParams, RbfOptions,
-    RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles,
+    AttributeMap, BackendError, Colouring, March, Marched, Mode, PlanItem, PlanParams, RbfOptions,
+    RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles, MAX_CELL,
 };
 use fluidcast_sph::FieldKind;
 use fluidcast_view::Camera;
@@ -33,6 +33,24 @@ pub(crate) const CLASSIFICATION_NAMES: [&str; 2] = ["post", "pre"];
 /// Whether `Settings::field` names the RBF field.
 pub(crate) fn is_rbf(field: &str) -> bool {
     field.eq_ignore_ascii_case(RBF)
+}
+
+/// The most screen tiles a view may be split into (the CLI's `--tiles` limit).
+const MAX_TILES: u32 = 65536;
+
+/// Refuses a mode, grid cell or tile count the renderers do not take.
+pub(crate) fn check_sampling(s: &ffi::Settings) -> Result<(), String> {
+    Mode::parse(&s.mode, s.grid_cell)?;
+    if !(1..=MAX_CELL).contains(&s.grid_cell) {
+        return Err(format!(
+            "grid cell {}: must be 1..={MAX_CELL} pixels",
+            s.grid_cell
+        ));
+    }
+    if s.tiles > MAX_TILES {
+        return Err(format!("tiles {}: at most {MAX_TILES}", s.tiles));
+    }
+    Ok(())
 }
 
 /// Refuses a field name no renderer has.
@@ -70,6 +88,10 @@ pub(crate) fn plan_of(
         },
         adaptive: PlanParams {
             tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
+            probe: s.probe,
+            superpixels: s.superpixels,
+            surface_cells: s.surface_cells,
+            interpolate: s.interpolate,
             ..Default::default()
         },
         depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
@@ -82,9 +104,9 @@ pub(crate) fn plan_of(
     };
     Ok(RenderPlan {
         params,
-        mode: None,
+        mode: Mode::parse(&s.mode, s.grid_cell)?,
         tiles: Tiles {
-            count: None,
+            count: (s.tiles > 0).then_some(s.tiles),
             budget_bytes: (s.memory_limit_mib > 0.0)
                 .then(|| (s.memory_limit_mib * 1048576.0).min(u64::MAX as f64) as u64),
         },
@@ -209,6 +231,7 @@ mod tests {
                 crate::rbf_classification_names(),
             ),
             ("FluidCastBackend", crate::backend_names()),
+            ("FluidCastMode", crate::mode_names()),
         ];
         for (property, names) in lists {
             let entries = enumeration(&xml, property);
