@@ -47,6 +47,10 @@ from vtkmodules.vtkRenderingCore import (
 )
 
 plugin, data, array, out, cli = sys.argv[1:6]
+# A small scene for the RBF field on a software GPU (lavapipe ends a shader invocation after
+# 65,535 loop iterations): the mapper with Backend GPU against `fluidcast render --field rbf
+# --backend gpu`.
+small = sys.argv[6] if len(sys.argv) > 6 else None
 if (missing := missing_data(data)) is not None:
     sys.exit(missing)
 W, H = 200, 150
@@ -301,5 +305,50 @@ for name, cli_opts, set_vtk, pv_props, against in OPTIONS:
     if not ok:
         print(f"FAIL: {name}")
         status = 1
+
+
+def rbf_on_the_gpu(path):
+    """The RBF field with Backend GPU in a VTK window: rendered on the GPU, and the image of
+    the CLI's `--field rbf --backend gpu` within 2/255."""
+    r = vtkXMLUnstructuredGridReader()
+    r.SetFileName(path)
+    mapper.SetInputConnection(r.GetOutputPort())
+    reset()
+    rbf_vtk(mapper)
+    mapper.SetBackend(2)
+    ren.ResetCamera()
+    vc = ren.GetActiveCamera()
+    with open(os.path.join(out, "camera_small.json"), "w") as f:
+        json.dump({"position": vc.GetPosition(), "focal_point": vc.GetFocalPoint(),
+                   "view_up": vc.GetViewUp(), "view_angle": vc.GetViewAngle(),
+                   "parallel_projection": False, "parallel_scale": 1.0}, f)
+    r.Update()
+    lo_s, hi_s = r.GetOutput().GetPointData().GetArray(array).GetRange(-1)
+    ctf.RemoveAllPoints()
+    otf.RemoveAllPoints()
+    for k in range(0, len(rgb), 4):
+        x = lo_s + (hi_s - lo_s) * (rgb[k] - lo) / (hi - lo)
+        ctf.AddRGBPoint(x, *rgb[k + 1:k + 4])
+    for k in range(0, len(pts), 4):
+        otf.AddPoint(lo_s + (hi_s - lo_s) * (pts[k] - lo) / (hi - lo), *pts[k + 1:k + 4])
+    v = vtk_image("rbf_gpu_small")
+    png = os.path.join(out, "cli_rbf_gpu_small.png")
+    subprocess.run([cli, "render", path, "--array", f"{array}:mag", "--tf",
+                    os.path.join(out, "tf.json"), "--range", f"{lo_s!r},{hi_s!r}",
+                    "--camera", os.path.join(out, "camera_small.json"), "--size", f"{W}x{H}",
+                    "--opacity-unit-distance", "0.1", "--background", "1,1,1",
+                    "--field", "rbf", "--backend", "gpu", "-o", png],
+                   check=True, stderr=subprocess.DEVNULL)
+    c = read_png(png)
+    device = mapper.GetLastDevice()
+    drawn = int((v != 255).any(axis=1).sum())
+    print(f"rbf_gpu ({os.path.basename(path)}): mapper on {device!r}, CLI vs VTK "
+          f"{worst(c, v)}/255 (allowed {AGREE}), {drawn} pixels drawn")
+    return device.startswith("GPU") and worst(c, v) <= AGREE and drawn > 0
+
+
+if small is not None and not rbf_on_the_gpu(small):
+    print("FAIL: rbf_gpu")
+    status = 1
 sys.stdout.flush()
 os._exit(status)
