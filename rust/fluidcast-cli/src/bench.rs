@@ -384,7 +384,6 @@ fn report_cpu(
     m: &Measured,
 ) -> Result<Vec<serde_json::Value>> {
     let (runs, tols) = (&m.runs, &m.tols);
-    let (reference, object, perspective) = (&m.reference, &m.object, &m.perspective);
 
     let off_total = runs[0].median("total");
     let off_rc = runs[0].median("raycast");
@@ -420,74 +419,67 @@ fn report_cpu(
         "% px > E",
         "views > E"
     );
-    let mut rows = Vec::new();
-    if !a.no_reference {
-        rows.push(baseline_row(
+    let baselines = [
+        (
+            !a.no_reference,
             "reference",
             "reference",
-            reference,
+            &m.reference,
             "bin",
-            off_total,
-        )?);
-    }
-    if a.object_space {
-        rows.push(baseline_row(
-            "object",
-            "object-space",
-            object,
-            "grid",
-            off_total,
-        )?);
-    }
-    if a.perspective_grid {
-        rows.push(baseline_row(
+        ),
+        (a.object_space, "object", "object-space", &m.object, "grid"),
+        (
+            a.perspective_grid,
             "persp-grid",
             "perspective-grid",
-            perspective,
+            &m.perspective,
             "resample",
-            off_total,
-        )?);
+        ),
+    ];
+    let mut rows = Vec::new();
+    for (_, label, mode, runs, prep) in baselines.into_iter().filter(|b| b.0) {
+        rows.push(baseline_row(label, mode, runs, prep, off_total)?);
     }
     for (t, tol) in tols.iter().enumerate() {
-        let r = &runs[t];
-        let name = tol.map_or("off".to_string(), |e| e.to_string());
-        let (rc, tot) = (r.median("raycast"), r.median("total"));
-        // Every view has the same pixel count, so the mean share is the overall share.
-        let share = if r.frac_above.is_empty() {
-            0.0
-        } else {
-            100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len() as f64
-        };
-        out!(
-            "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
-            name,
-            r.median("grid"),
-            r.median("adapt"),
-            rc,
-            tot,
-            format!("{:.2} ({:.2})", off_rc / rc, off_total / tot),
-            if tol.is_some() {
-                format!("{:.5}", r.max_err)
-            } else {
-                "-".into()
-            },
-            if tol.is_some() {
-                format!("{share:.4}")
-            } else {
-                "-".into()
-            },
-            if tol.is_some() {
-                format!("{}/{}", r.views_above, r.stages.len())
-            } else {
-                "-".into()
-            },
-        );
-        rows.push(json!({"mode": "adaptive", "error_tolerance": tol, "grid_ms": r.median("grid"), "adapt_ms": r.median("adapt"),
-                         "raycast_ms": rc, "total_ms": tot, "speedup_raycast": off_rc / rc, "speedup_total": off_total / tot,
-                         "max_error": r.max_err, "percent_pixels_above": share, "views_above": r.views_above,
-                         "views": r.stages.len(), "samples": r.samples}));
+        rows.push(adaptive_row(&runs[t], *tol, (off_rc, off_total))?);
     }
     Ok(rows)
+}
+
+/// Prints the table row of the adaptive renderer at tolerance `tol` (speed-ups over full
+/// rate's ray casting and total, `off`) and returns its JSON.
+fn adaptive_row(
+    r: &Runs,
+    tol: Option<f64>,
+    (off_rc, off_total): (f64, f64),
+) -> Result<serde_json::Value> {
+    let name = tol.map_or("off".to_string(), |e| e.to_string());
+    let (rc, tot) = (r.median("raycast"), r.median("total"));
+    // Every view has the same pixel count, so the mean share is the overall share.
+    let share = if r.frac_above.is_empty() {
+        0.0
+    } else {
+        100.0 * r.frac_above.iter().sum::<f64>() / r.frac_above.len() as f64
+    };
+    let if_tol = |text: String| if tol.is_some() { text } else { "-".into() };
+    out!(
+        "{:<10} {:>8.1} {:>8.1} {:>9.1} {:>9.1} {:>14} {:>10} {:>10} {:>10}",
+        name,
+        r.median("grid"),
+        r.median("adapt"),
+        rc,
+        tot,
+        format!("{:.2} ({:.2})", off_rc / rc, off_total / tot),
+        if_tol(format!("{:.5}", r.max_err)),
+        if_tol(format!("{share:.4}")),
+        if_tol(format!("{}/{}", r.views_above, r.stages.len())),
+    );
+    Ok(
+        json!({"mode": "adaptive", "error_tolerance": tol, "grid_ms": r.median("grid"), "adapt_ms": r.median("adapt"),
+              "raycast_ms": rc, "total_ms": tot, "speedup_raycast": off_rc / rc, "speedup_total": off_total / tot,
+              "max_error": r.max_err, "percent_pixels_above": share, "views_above": r.views_above,
+              "views": r.stages.len(), "samples": r.samples}),
+    )
 }
 
 /// Prints the GPU table (adapter `adapter`) and returns its JSON rows.

@@ -122,6 +122,36 @@ pub fn run(a: &BenchArgs, lods: &[f64]) -> Result<()> {
     report(a, &s.base, (&full, &rows, lods), &builds)
 }
 
+/// Prints the row of level-of-detail tolerance `tol` (speed-up over full detail's `full_t`
+/// ms) and returns its JSON.
+fn lod_row(r: &Row, tol: f64, full_t: f64) -> Result<serde_json::Value> {
+    let med = |v: &[f64]| crate::bench::median(&mut v.to_vec());
+    let n = {
+        let mut p: Vec<f64> = r.particles.iter().map(|&n| n as f64).collect();
+        crate::bench::median(&mut p)
+    };
+    let t = r.median_total();
+    out!(
+        "{:<10} {:>11.0} {:>8.1} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9.5} {:>9.4} {:>12.4}",
+        tol,
+        n,
+        med(&r.cut_ms),
+        med(&r.surface_ms),
+        med(&r.render_ms),
+        t,
+        format!("{:.2}x", full_t / t),
+        r.rmse,
+        r.max_abs,
+        100.0 * r.frac_above
+    );
+    Ok(
+        json!({"lod_px": tol, "particles": n, "cut_ms": med(&r.cut_ms), "surface_ms": med(&r.surface_ms),
+              "render_ms": med(&r.render_ms), "total_ms": t, "speedup_vs_full_detail": full_t / t,
+              "rmse_vs_full_detail": r.rmse, "max_abs_vs_full_detail": r.max_abs,
+              "percent_pixels_above_1_255": 100.0 * r.frac_above}),
+    )
+}
+
 /// Prints the table and writes `--json`.
 fn report(
     a: &BenchArgs,
@@ -174,29 +204,7 @@ fn report(
     );
     let mut js = Vec::new();
     for (r, tol) in rows.iter().zip(lods) {
-        let med = |v: &[f64]| crate::bench::median(&mut v.to_vec());
-        let n = {
-            let mut p: Vec<f64> = r.particles.iter().map(|&n| n as f64).collect();
-            crate::bench::median(&mut p)
-        };
-        let t = r.median_total();
-        out!(
-            "{:<10} {:>11.0} {:>8.1} {:>9.1} {:>9.1} {:>9.1} {:>9} {:>9.5} {:>9.4} {:>12.4}",
-            tol,
-            n,
-            med(&r.cut_ms),
-            med(&r.surface_ms),
-            med(&r.render_ms),
-            t,
-            format!("{:.2}x", full_t / t),
-            r.rmse,
-            r.max_abs,
-            100.0 * r.frac_above
-        );
-        js.push(json!({"lod_px": tol, "particles": n, "cut_ms": med(&r.cut_ms), "surface_ms": med(&r.surface_ms),
-                       "render_ms": med(&r.render_ms), "total_ms": t, "speedup_vs_full_detail": full_t / t,
-                       "rmse_vs_full_detail": r.rmse, "max_abs_vs_full_detail": r.max_abs,
-                       "percent_pixels_above_1_255": 100.0 * r.frac_above}));
+        js.push(lod_row(r, *tol, full_t)?);
     }
     out!("errors: the worst view's, against the full-detail image of the same view");
     if let Some(p) = &a.json {

@@ -94,24 +94,8 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             for v in 0..a.views {
                 scene.camera = orbit(cam0, v, a.views);
                 pb.set_message(format!("frame {fi}, leaf {leaf}, view {v}"));
-                let t = Instant::now();
-                let r = cpu
-                    .render(&mut scene, &plan)
+                measure_view(&cpu, &mut scene, &mut plan, &mut row)
                     .with_context(|| format!("rendering {}", file.display()))?;
-                let stage = |name| r.stats.stages.iter().find(|s| s.0 == name).map(|s| s.1);
-                let (bvh, refit) = (stage("bvh"), stage("refit").unwrap_or(0.0));
-                if let Some(b) = bvh {
-                    (row.build_ms, row.refit_ms) = (b, refit);
-                }
-                // The render alone: the build and the refit are columns of their own.
-                let built = bvh.unwrap_or(0.0) + refit;
-                row.render_ms.push((ms(t) - built).max(0.0));
-                row.bytes = r.march_bytes.unwrap_or(0);
-                row.bvh_bytes = r.march_bvh_bytes.unwrap_or(0);
-                row.samples += r.stats.samples;
-                if let Some(m) = &mut plan.march {
-                    m.time_refit = false; // once per field, as the build
-                }
                 pb.inc(1);
             }
             rows.push(row);
@@ -119,6 +103,32 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     }
     pb.finish_and_clear();
     report(a, &base, &rows)
+}
+
+/// Renders one view of `scene` and adds it to `row`: the first render of a field reports its
+/// build and one refit (stages bvh and refit), which are not part of the render's time.
+fn measure_view(
+    cpu: &Renderer,
+    scene: &mut Scene,
+    plan: &mut RenderPlan,
+    row: &mut Row,
+) -> Result<()> {
+    let t = Instant::now();
+    let r = cpu.render(scene, plan)?;
+    let stage = |name| r.stats.stages.iter().find(|s| s.0 == name).map(|s| s.1);
+    let (bvh, refit) = (stage("bvh"), stage("refit").unwrap_or(0.0));
+    if let Some(b) = bvh {
+        (row.build_ms, row.refit_ms) = (b, refit);
+    }
+    let built = bvh.unwrap_or(0.0) + refit;
+    row.render_ms.push((ms(t) - built).max(0.0));
+    row.bytes = r.march_bytes.unwrap_or(0);
+    row.bvh_bytes = r.march_bvh_bytes.unwrap_or(0);
+    row.samples += r.stats.samples;
+    if let Some(m) = &mut plan.march {
+        m.time_refit = false; // once per field, as the build
+    }
+    Ok(())
 }
 
 fn report(a: &BenchArgs, base: &fluidcast_backend::RenderParams, rows: &[Row]) -> Result<()> {

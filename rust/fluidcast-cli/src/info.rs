@@ -51,6 +51,38 @@ pub fn run(a: InfoArgs) -> Result<()> {
     } else {
         None
     };
+    if a.json {
+        out!("{}", info_json(&ds, frames.len(), nonfinite, suggested));
+        return Ok(());
+    }
+    if let Input::Series(c) = &input {
+        out!(
+            "series {}: {} frames ({} data sets), t = {} .. {}",
+            c.path.display(),
+            frames.len(),
+            c.entries.len(),
+            c.entries.first().map_or(0.0, |e| e.timestep),
+            c.entries.last().map_or(0.0, |e| e.timestep)
+        );
+        out!("first frame:");
+    }
+    print_geometry(&ds, nonfinite)?;
+    print_arrays(&ds)?;
+    match (ds.field_scalar("support_radius"), suggested) {
+        (Some(h), _) => out!("support radius: {h} (field data 'support_radius')"),
+        (None, Some(h)) => out!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
+        (None, None) => out!("no support radius can be suggested (no measurable spacing between neighbouring points)"),
+    }
+    Ok(())
+}
+
+/// `fluidcast info --json`: the first frame's data set as one object.
+fn info_json(
+    ds: &fluidcast_io::Dataset,
+    frames: usize,
+    nonfinite: usize,
+    suggested: Option<f64>,
+) -> serde_json::Value {
     let arrays: Vec<_> = ds
         .point_data
         .iter()
@@ -74,26 +106,13 @@ pub fn run(a: InfoArgs) -> Result<()> {
         .collect();
     let cells =
         json!({"count": ds.cells.count, "not_vertices": other, "cell_data": ds.cells.cell_arrays});
-    if a.json {
-        out!(
-            "{}",
-            json!({"file": ds.path, "frames": frames.len(), "points": ds.points.len(), "nonfinite_points": nonfinite,
-                   "bounds": bounds, "point_data": arrays, "field_data": fields, "cells": cells,
-                   "suggested_support_radius": suggested})
-        );
-        return Ok(());
-    }
-    if let Input::Series(c) = &input {
-        out!(
-            "series {}: {} frames ({} data sets), t = {} .. {}",
-            c.path.display(),
-            frames.len(),
-            c.entries.len(),
-            c.entries.first().map_or(0.0, |e| e.timestep),
-            c.entries.last().map_or(0.0, |e| e.timestep)
-        );
-        out!("first frame:");
-    }
+    json!({"file": ds.path, "frames": frames, "points": ds.points.len(), "nonfinite_points": nonfinite,
+           "bounds": bounds, "point_data": arrays, "field_data": fields, "cells": cells,
+           "suggested_support_radius": suggested})
+}
+
+/// The file, its kind, points, cells and bounds, a line each.
+fn print_geometry(ds: &fluidcast_io::Dataset, nonfinite: usize) -> Result<()> {
     out!("file:   {}", ds.path.display());
     out!("kind:   {:?}", ds.kind);
     out!(
@@ -122,6 +141,11 @@ pub fn run(a: InfoArgs) -> Result<()> {
             hi[2]
         );
     }
+    Ok(())
+}
+
+/// The point arrays (type, components, range) and the field data (first values).
+fn print_arrays(ds: &fluidcast_io::Dataset) -> Result<()> {
     out!("point data:");
     for x in &ds.point_data {
         let r = x
@@ -154,11 +178,6 @@ pub fn run(a: InfoArgs) -> Result<()> {
                 if x.values.len() > 6 { " …" } else { "" }
             );
         }
-    }
-    match (ds.field_scalar("support_radius"), suggested) {
-        (Some(h), _) => out!("support radius: {h} (field data 'support_radius')"),
-        (None, Some(h)) => out!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
-        (None, None) => out!("no support radius can be suggested (no measurable spacing between neighbouring points)"),
     }
     Ok(())
 }

@@ -216,15 +216,10 @@ impl ViewArgs {
     /// Camera and transfer function for the data: the camera from --camera (or reset on the
     /// data) with azimuth/elevation/zoom applied, the range from --range or the data, and the
     /// opacity unit distance. Prints a summary line when `verbose`.
-    pub fn setup(
-        &self,
-        particles: &Particles,
-        params: &RenderParams,
-        base: &TransferFunction,
-        verbose: bool,
-    ) -> Result<(Camera, TransferFunction)> {
+    /// The camera: `--camera` (a file, or auto: the particles' supports in view), turned by
+    /// `--azimuth`/`--elevation`, zoomed, and written to `--save-camera`.
+    fn camera(&self, particles: &Particles) -> Result<Camera> {
         let a = self;
-        let mut tf = base.clone();
         let mut cam = if a.camera == "auto" {
             let (lo, hi) = particles.support_bounds();
             let mut c = Camera {
@@ -249,35 +244,22 @@ impl ViewArgs {
             std::fs::write(p, serde_json::to_string_pretty(&cam)?)
                 .with_context(|| format!("writing {}", p.display()))?;
         }
+        Ok(cam)
+    }
+
+    pub fn setup(
+        &self,
+        particles: &Particles,
+        params: &RenderParams,
+        base: &TransferFunction,
+        verbose: bool,
+    ) -> Result<(Camera, TransferFunction)> {
+        let a = self;
+        let mut tf = base.clone();
+        let cam = a.camera(particles)?;
         let (lo, hi) = match &a.range {
             Some(r) => parse_pair(r, "--range")?,
-            None => {
-                let (lo, hi) = match params.field {
-                    fluidcast_sph::FieldKind::Csph => {
-                        let r = particles.value_range();
-                        (r.0 as f64, r.1 as f64)
-                    }
-                    // For sums, map up to the typical field magnitude at a particle.
-                    _ => {
-                        let s = particles.sample_many(
-                            params.kernel,
-                            &particles
-                                .positions
-                                .iter()
-                                .step_by((particles.len() / 2000).max(1))
-                                .map(|p| p.map(f64::from))
-                                .collect::<Vec<_>>(),
-                        );
-                        let v: Vec<f64> = s.iter().filter_map(|s| s.value(params.field)).collect();
-                        (0.0, v.iter().copied().fold(0.0, f64::max))
-                    }
-                };
-                if lo < hi {
-                    (lo, hi)
-                } else {
-                    (lo - 0.5, lo + 0.5)
-                }
-            }
+            None => auto_range(particles, params),
         };
         tf = tf.with_range(lo, hi)?;
         tf.unit_distance = match a.opacity_unit_distance {
@@ -304,6 +286,35 @@ impl ViewArgs {
             );
         }
         Ok((cam, tf))
+    }
+}
+
+/// The colour map's range without `--range`: the attribute's range for CSPH; for sums, 0 up
+/// to the typical field magnitude at a particle (a sample of 2000); a point widened to 1.
+fn auto_range(particles: &Particles, params: &RenderParams) -> (f64, f64) {
+    let (lo, hi) = match params.field {
+        fluidcast_sph::FieldKind::Csph => {
+            let r = particles.value_range();
+            (r.0 as f64, r.1 as f64)
+        }
+        _ => {
+            let s = particles.sample_many(
+                params.kernel,
+                &particles
+                    .positions
+                    .iter()
+                    .step_by((particles.len() / 2000).max(1))
+                    .map(|p| p.map(f64::from))
+                    .collect::<Vec<_>>(),
+            );
+            let v: Vec<f64> = s.iter().filter_map(|s| s.value(params.field)).collect();
+            (0.0, v.iter().copied().fold(0.0, f64::max))
+        }
+    };
+    if lo < hi {
+        (lo, hi)
+    } else {
+        (lo - 0.5, lo + 0.5)
     }
 }
 

@@ -304,23 +304,43 @@ fn parse_header_lines(bytes: &[u8]) -> Res<(usize, String, Cursor<'_>)> {
     Ok((at, dataset, c))
 }
 
+/// The `POINTS n type` section's coordinates.
+fn points(c: &mut Cursor<'_>) -> Res<Vec<[f64; 3]>> {
+    let (at, w) = c.header("POINTS", 2)?;
+    let n = c.count(at, &w, 1, "point count")?;
+    let st = c.scalar_type(at, w.get(2).unwrap_or(&""))?;
+    let n3 = n
+        .checked_mul(3)
+        .ok_or_else(|| c.msg(at, "too many points"))?;
+    let v = c.values(n3, st, true)?;
+    let xyz = crate::xyz(&v).collect();
+    c.maybe_metadata();
+    Ok(xyz)
+}
+
+/// A `FIELD` section, whose arrays belong to the data set, the points or the cells as the
+/// `section` it appears in.
+fn field_section(c: &mut Cursor<'_>, section: Section, p: &mut Parsed) -> Res<()> {
+    let tuples = match section {
+        Section::DataSet => None,
+        Section::Point(n) | Section::Cell(n) => Some(n),
+    };
+    let arrays = field(c, tuples)?;
+    match section {
+        Section::DataSet => p.field_data.extend(arrays),
+        Section::Point(_) => p.point_data.extend(arrays),
+        Section::Cell(_) => arrays.iter().for_each(|a| p.cells.add_array(&a.name)),
+    }
+    Ok(())
+}
+
 /// Every section after `DATASET`, keyword by keyword.
 fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
     let mut p = Parsed::default();
     let mut section = Section::DataSet;
     while let Some((at, key)) = c.peek() {
         match key.to_ascii_uppercase().as_str() {
-            "POINTS" => {
-                let (at, w) = c.header("POINTS", 2)?;
-                let n = c.count(at, &w, 1, "point count")?;
-                let st = c.scalar_type(at, w.get(2).unwrap_or(&""))?;
-                let n3 = n
-                    .checked_mul(3)
-                    .ok_or_else(|| c.msg(at, "too many points"))?;
-                let v = c.values(n3, st, true)?;
-                p.points = Some(crate::xyz(&v).collect());
-                c.maybe_metadata();
-            }
+            "POINTS" => p.points = Some(points(&mut c)?),
             // An unstructured grid's cells are counted by their CELL_TYPES.
             "CELLS" => {
                 skip_cells(&mut c, key)?;
@@ -353,20 +373,7 @@ fn parse_body(mut c: Cursor<'_>) -> Res<Parsed> {
                     p.point_data_count = Some(n);
                 }
             }
-            "FIELD" => {
-                let arrays = field(
-                    &mut c,
-                    match section {
-                        Section::DataSet => None,
-                        Section::Point(n) | Section::Cell(n) => Some(n),
-                    },
-                )?;
-                match section {
-                    Section::DataSet => p.field_data.extend(arrays),
-                    Section::Point(_) => p.point_data.extend(arrays),
-                    Section::Cell(_) => arrays.iter().for_each(|a| p.cells.add_array(&a.name)),
-                }
-            }
+            "FIELD" => field_section(&mut c, section, &mut p)?,
             _ => {
                 let n = match section {
                     Section::Point(n) | Section::Cell(n) => n,
