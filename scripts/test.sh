@@ -31,6 +31,8 @@ cargo build --bin fluidcast
 # setup_system.sh installed lavapipe, so the GPU tests must find an adapter, not skip.
 FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
 .venv/bin/ruff check python tests examples scripts
+# No Rust function outside tests over 80 lines (prints the longest five).
+.venv/bin/python scripts/function_lengths.py --fail
 .venv/bin/python -m pytest -q tests/python --junitxml=build/reports/pytest-python.xml
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh

@@ -37,7 +37,98 @@ fn refuse(field: &RbfField, params: &RenderParams, rbf: &RbfRenderParams) -> Res
     Ok(())
 }
 
+/// What the GPU's march refuses before any work: bad parameters, surfaces, what [`refuse`]
+/// names, a transfer function longer than the shader's table.
+fn check_rbf(
+    field: &RbfField,
+    tf: &TransferFunction,
+    params: &RenderParams,
+    rbf: &RbfRenderParams,
+) -> Result<(), GpuError> {
+    validate(params)?;
+    refuse_surfaces(params, "the GPU's RBF field")?;
+    refuse(field, params, rbf)?;
+    let points = tf.colors.len().max(tf.opacity.len());
+    if points > crate::MAX_TF_POINTS {
+        return Err(GpuError::TransferFunction(points));
+    }
+    Ok(())
+}
+
+/// The march's uniform block (`R` in rbf.wgsl) for `field` marched as `rbf` says, with
+/// `step` world units between samples.
+fn rbf_uniform(field: &RbfField, rbf: &RbfRenderParams, step: f64) -> RbfUniform {
+    let bvh = field.bvh();
+    let n = bvh.len();
+    let root = bvh.bounds();
+    RbfUniform {
+        root_lo: [root.lo[0], root.lo[1], root.lo[2], 0.0],
+        root_hi: [root.hi[0], root.hi[1], root.hi[2], 0.0],
+        step: step as f32,
+        first_leaf: bvh.first_leaf() as u32,
+        n_slots: n as u32,
+        leaf_size: bvh.leaf_size() as u32,
+        spp: rbf.spp,
+        first_pass: rbf.first_pass,
+        seed: rbf.seed,
+        colouring: colouring_code(field.colouring()),
+        noise: noise_code(rbf.noise),
+        // Every node and every particle, and each loop's exit: the most one point query
+        // can take (see `field_at`).
+        query_bound: (bvh.boxes().len() + 2 * n + 2).min(u32::MAX as usize / 4) as u32,
+        shadows: u32::from(rbf.shadows.is_some()),
+        shadow_samples: rbf.shadows.as_ref().map_or(1, |s| s.samples),
+        light: rbf.shadows.as_ref().map_or([0.0; 4], |s| {
+            [s.light[0] as f32, s.light[1] as f32, s.light[2] as f32, 0.0]
+        }),
+        ambient: rbf.shadows.as_ref().map_or(1.0, |s| s.ambient as f32),
+        pad: [0; 3],
+    }
+}
+
+/// The BVH's boxes (lower and upper corner, each padded to 4 floats) and each slot's weight
+/// and attribute, as the shader reads them.
+fn field_arrays(field: &RbfField) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let bvh = field.bvh();
+    let boxes: Vec<[f32; 4]> = bvh
+        .boxes()
+        .iter()
+        .flat_map(|b| {
+            [
+                [b.lo[0], b.lo[1], b.lo[2], 0.0],
+                [b.hi[0], b.hi[1], b.hi[2], 0.0],
+            ]
+        })
+        .collect();
+    let attrs: Vec<[f32; 4]> = (0..bvh.len() as u32)
+        .map(|s| {
+            let (w, t) = field.weight_theta(s);
+            [w, t[0], t[1], t[2]]
+        })
+        .collect();
+    (boxes, attrs)
+}
+
 impl Gpu {
+    /// Reads the march's image (premultiplied RGBA, depth: empty pixels at infinity) back
+    /// into `image`; true when a shader invocation hit the loop guard.
+    fn read_image(
+        &self,
+        (rgba, depth, guard): (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+        image: &mut Image,
+    ) -> Result<bool, GpuError> {
+        let n_px = image.rgba.len() as u64;
+        let parts = [(rgba, 16 * n_px), (depth, 4 * n_px), (guard, 4)];
+        self.fetch_with(&parts, |got| {
+            image.rgba = cast(got[0]);
+            image.depth = cast::<f32>(got[1]);
+            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
+                *z = f32::INFINITY;
+            }
+            cast::<u32>(got[2])[0] != 0
+        })
+    }
+
     /// Renders `field` as [`fluidcast_render::render_rbf`] does (the same passes, offsets,
     /// shade points and shadow rays), in single precision on the GPU.
     pub fn render_rbf(
@@ -48,13 +139,7 @@ impl Gpu {
         params: &RenderParams,
         rbf: &RbfRenderParams,
     ) -> Result<(Image, RenderStats), GpuError> {
-        validate(params)?;
-        refuse_surfaces(params, "the GPU's RBF field")?;
-        refuse(field, params, rbf)?;
-        let points = tf.colors.len().max(tf.opacity.len());
-        if points > crate::MAX_TF_POINTS {
-            return Err(GpuError::TransferFunction(points));
-        }
+        check_rbf(field, tf, params, rbf)?;
         let _frame_lock = self
             .frame_lock
             .lock()
@@ -74,46 +159,8 @@ impl Gpu {
         };
         let t0 = Instant::now();
         let n = bvh.len();
-        let root = bvh.bounds();
-        let u = RbfUniform {
-            root_lo: [root.lo[0], root.lo[1], root.lo[2], 0.0],
-            root_hi: [root.hi[0], root.hi[1], root.hi[2], 0.0],
-            step: step as f32,
-            first_leaf: bvh.first_leaf() as u32,
-            n_slots: n as u32,
-            leaf_size: bvh.leaf_size() as u32,
-            spp: rbf.spp,
-            first_pass: rbf.first_pass,
-            seed: rbf.seed,
-            colouring: colouring_code(field.colouring()),
-            noise: noise_code(rbf.noise),
-            // Every node and every particle, and each loop's exit: the most one point query
-            // can take (see `field_at`).
-            query_bound: (bvh.boxes().len() + 2 * n + 2).min(u32::MAX as usize / 4) as u32,
-            shadows: u32::from(rbf.shadows.is_some()),
-            shadow_samples: rbf.shadows.as_ref().map_or(1, |s| s.samples),
-            light: rbf.shadows.as_ref().map_or([0.0; 4], |s| {
-                [s.light[0] as f32, s.light[1] as f32, s.light[2] as f32, 0.0]
-            }),
-            ambient: rbf.shadows.as_ref().map_or(1.0, |s| s.ambient as f32),
-            pad: [0; 3],
-        };
-        let boxes: Vec<[f32; 4]> = bvh
-            .boxes()
-            .iter()
-            .flat_map(|b| {
-                [
-                    [b.lo[0], b.lo[1], b.lo[2], 0.0],
-                    [b.hi[0], b.hi[1], b.hi[2], 0.0],
-                ]
-            })
-            .collect();
-        let attrs: Vec<[f32; 4]> = (0..n as u32)
-            .map(|s| {
-                let (w, t) = field.weight_theta(s);
-                [w, t[0], t[1], t[2]]
-            })
-            .collect();
+        let u = rbf_uniform(field, rbf, step);
+        let (boxes, attrs) = field_arrays(field);
         let fu = frame_uniform(&frame, params, tf, n, self.loop_limit);
         let frame_buf = self.frame_buffer(&fu);
         let rbf_buf = self.buffer(
@@ -154,15 +201,7 @@ impl Gpu {
                 (w.div_ceil(8), h.div_ceil(8)),
             )
         })?;
-        let parts = [(&rgba, 16 * n_px), (&depth, 4 * n_px), (&guard, 4)];
-        let guarded = self.fetch_with(&parts, |got| {
-            image.rgba = cast(got[0]);
-            image.depth = cast::<f32>(got[1]);
-            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
-                *z = f32::INFINITY;
-            }
-            cast::<u32>(got[2])[0] != 0
-        })?;
+        let guarded = self.read_image((&rgba, &depth, &guard), &mut image)?;
         push_stage(&mut stats, "raycast", ms(t));
         if guarded {
             return Err(self.loop_limit_error("the RBF field's point queries"));

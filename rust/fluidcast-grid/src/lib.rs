@@ -644,6 +644,178 @@ pub struct PerspectiveGrid {
     bundle_cells: Vec<u32>,
 }
 
+/// What a particle's footprint in a view's grid depends on: the view, its depth samples and
+/// their range, bundle size D_xy, D_z and bundles per row.
+struct Footprint<'a> {
+    frame: &'a ViewFrame,
+    depths: &'a SampleDepths,
+    range: (f64, f64),
+    bundle: u32,
+    dz: usize,
+    bundles_x: u32,
+}
+
+impl Footprint<'_> {
+    /// The bundle rectangle and cell depth range (inclusive) particle `p` reaches, `None`
+    /// when it reaches no pixel or depth sample. Computed where needed, twice, rather than
+    /// stored: 28 bytes a particle.
+    #[inline]
+    fn of(&self, p: &ViewParticle) -> Option<[u32; 6]> {
+        let (near, far) = self.range;
+        let r = screen_rect(self.frame, p, near, far)?;
+        let k = self.depths.indices_within(p.c[2] - p.h(), p.c[2] + p.h());
+        if k.is_empty() {
+            return None;
+        }
+        let (d, dz) = (self.bundle, self.dz);
+        Some([
+            r[0] / d,
+            (r[1] - 1) / d,
+            r[2] / d,
+            (r[3] - 1) / d,
+            (k.start / dz) as u32,
+            ((k.end - 1) / dz) as u32,
+        ])
+    }
+
+    /// Calls `pair(bundle, cell z, merge bit)` for every cell of footprint `f`.
+    #[inline]
+    fn each_pair(&self, f: &[u32; 6], pair: &mut dyn FnMut(usize, u32, bool)) {
+        for y in f[2]..=f[3] {
+            for x in f[0]..=f[1] {
+                for z in f[4]..=f[5] {
+                    pair((y * self.bundles_x + x) as usize, z, z < f[5]);
+                }
+            }
+        }
+    }
+
+    /// Per chunk of `chunk_len` particles, its pairs per bundle (of `nb`); and the visible
+    /// particles.
+    fn count(
+        &self,
+        particles: &[ViewParticle],
+        chunk_len: usize,
+        nb: usize,
+    ) -> (Vec<Vec<u32>>, usize) {
+        let counts: Vec<(Vec<u32>, usize)> = particles
+            .par_chunks(chunk_len)
+            .map(|ps| {
+                let mut c = vec![0u32; nb];
+                let mut visible = 0;
+                for f in ps.iter().filter_map(|p| self.of(p)) {
+                    visible += 1;
+                    self.each_pair(&f, &mut |b, _, _| c[b] += 1);
+                }
+                (c, visible)
+            })
+            .collect();
+        let visible = counts.iter().map(|c| c.1).sum();
+        (counts.into_iter().map(|c| c.0).collect(), visible)
+    }
+
+    /// The pairs' keys (cell z << 33 | merge bit << 32 | particle), grouped by bundle, each
+    /// chunk's keys from its own start in each bundle (`counts`), `total` in all.
+    fn keys(
+        &self,
+        particles: &[ViewParticle],
+        chunk_len: usize,
+        counts: Vec<Vec<u32>>,
+        total: usize,
+    ) -> Vec<u64> {
+        let nb = counts.first().map_or(0, Vec::len);
+        let mut keys = vec![0u64; total];
+        // Each chunk's own slice of each bundle's keys.
+        let mut own: Vec<Vec<&mut [u64]>> =
+            (0..counts.len()).map(|_| Vec::with_capacity(nb)).collect();
+        let mut rest = keys.as_mut_slice();
+        for b in 0..nb {
+            for (c, count) in own.iter_mut().zip(&counts) {
+                let (a, r) = rest.split_at_mut(count[b] as usize);
+                c.push(a);
+                rest = r;
+            }
+        }
+        drop(counts);
+        particles
+            .par_chunks(chunk_len)
+            .zip(own.into_par_iter())
+            .enumerate()
+            .for_each(|(ci, (ps, mut slices))| {
+                let mut used = vec![0u32; nb];
+                for (k, p) in ps.iter().enumerate() {
+                    let Some(f) = self.of(p) else { continue };
+                    let j = (ci * chunk_len + k) as u64;
+                    self.each_pair(&f, &mut |b, z, bit| {
+                        slices[b][used[b] as usize] = ((z as u64) << 33) | ((bit as u64) << 32) | j;
+                        used[b] += 1;
+                    });
+                }
+            });
+        keys
+    }
+}
+
+/// Where each bundle's pairs start (`nb + 1` offsets), from the chunks' counts.
+fn bundle_offsets(counts: &[Vec<u32>], nb: usize) -> Vec<usize> {
+    let mut offsets = vec![0usize; nb + 1];
+    for c in counts {
+        for (o, &k) in offsets[1..].iter_mut().zip(c) {
+            *o += k as usize;
+        }
+    }
+    for b in 0..nb {
+        offsets[b + 1] += offsets[b];
+    }
+    offsets
+}
+
+/// Sorts each bundle's keys (between `offsets`) by (cell, merge bit, particle), in parallel,
+/// and returns each bundle's cells, front to back.
+fn sorted_cells(keys: &mut [u64], offsets: &[usize]) -> Vec<Vec<Cell>> {
+    let nb = offsets.len() - 1;
+    let mut slices: Vec<&mut [u64]> = Vec::with_capacity(nb);
+    let mut rest = keys;
+    for b in 0..nb {
+        let (a, r) = rest.split_at_mut(offsets[b + 1] - offsets[b]);
+        slices.push(a);
+        rest = r;
+    }
+    slices
+        .into_par_iter()
+        .enumerate()
+        .map_init(SortScratch::default, |scratch, (b, s)| {
+            sort_bundle_pairs(s, scratch);
+            cells_of(s, offsets[b] as u32)
+        })
+        .collect()
+}
+
+/// The cells of one bundle's sorted keys `s`, whose references start at `base`.
+fn cells_of(s: &[u64], base: u32) -> Vec<Cell> {
+    let mut cells: Vec<Cell> = Vec::new();
+    for (i, &k) in s.iter().enumerate() {
+        let z = (k >> 33) as u32;
+        let bit = (k >> 32) & 1 == 1;
+        let i = base + i as u32;
+        match cells.last_mut() {
+            Some(c) if c.z == z => {
+                c.end = i + 1;
+                if !bit {
+                    c.unique_end = i + 1;
+                }
+            }
+            _ => cells.push(Cell {
+                z,
+                start: i,
+                unique_end: if bit { i } else { i + 1 },
+                end: i + 1,
+            }),
+        }
+    }
+    cells
+}
+
 impl PerspectiveGrid {
     /// Builds the grid from raw particles for one view (Sec. 6.1). `sampling_scale`
     /// multiplies the number of depth samples (see [`SampleDepths::new`]).
@@ -654,6 +826,32 @@ impl PerspectiveGrid {
         sampling_scale: f64,
     ) -> Result<PerspectiveGrid, GridError> {
         PerspectiveGrid::build_within(particles, frame, params, sampling_scale, None)
+    }
+
+    /// The grid of `particles` for `frame` with no cells yet (and no depths: nothing reaches
+    /// a depth sample until they are placed).
+    fn empty(
+        frame: &ViewFrame,
+        params: GridParams,
+        particles: Vec<ViewParticle>,
+    ) -> PerspectiveGrid {
+        let d = params.bundle;
+        let (bx, by) = (frame.width.div_ceil(d), frame.height.div_ceil(d));
+        let nb = (bx * by) as usize;
+        PerspectiveGrid {
+            frame: *frame,
+            params,
+            depths: None,
+            bundles_x: bx,
+            bundles_y: by,
+            cells_z: 0,
+            particles,
+            rects: Vec::new(),
+            particles_visible: 0,
+            refs: Vec::new(),
+            cells: Vec::new(),
+            bundle_cells: vec![0; nb + 1],
+        }
     }
 
     /// [`PerspectiveGrid::build`] with the depth samples placed over `support_depths`
@@ -674,22 +872,8 @@ impl PerspectiveGrid {
         let own = vp.range;
         vp.range = sampled_range(frame, support_depths, || own);
         let d = params.bundle;
-        let (bx, by) = (frame.width.div_ceil(d), frame.height.div_ceil(d));
-        let nb = (bx * by) as usize;
-        let mut grid = PerspectiveGrid {
-            frame: *frame,
-            params,
-            depths: None,
-            bundles_x: bx,
-            bundles_y: by,
-            cells_z: 0,
-            particles: vp.list,
-            rects: Vec::new(),
-            particles_visible: 0,
-            refs: Vec::new(),
-            cells: Vec::new(),
-            bundle_cells: vec![0; nb + 1],
-        };
+        let mut grid = PerspectiveGrid::empty(frame, params, vp.list);
+        let (bx, nb) = (grid.bundles_x, grid.bundle_count());
         let Some((near, far)) = vp.range else {
             return Ok(grid);
         };
@@ -702,63 +886,23 @@ impl PerspectiveGrid {
             .map(|p| stored_rect(frame, p, near, far))
             .collect();
 
-        // Footprint of each particle: bundle rectangle and cell depth range (inclusive).
-        // Computed where needed, twice, rather than stored: 28 bytes a particle.
-        let foot = |p: &ViewParticle| -> Option<[u32; 6]> {
-            let r = screen_rect(frame, p, near, far)?;
-            let k = depths.indices_within(p.c[2] - p.h(), p.c[2] + p.h());
-            if k.is_empty() {
-                return None;
-            }
-            Some([
-                r[0] / d,
-                (r[1] - 1) / d,
-                r[2] / d,
-                (r[3] - 1) / d,
-                (k.start / dz) as u32,
-                ((k.end - 1) / dz) as u32,
-            ])
+        let fp = Footprint {
+            frame,
+            depths: &depths,
+            range: (near, far),
+            bundle: d,
+            dz,
+            bundles_x: bx,
         };
-        let each_pair = |f: &[u32; 6], pair: &mut dyn FnMut(usize, u32, bool)| {
-            for y in f[2]..=f[3] {
-                for x in f[0]..=f[1] {
-                    for z in f[4]..=f[5] {
-                        pair((y * bx + x) as usize, z, z < f[5]);
-                    }
-                }
-            }
-        };
-
         // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle, the
         // particles in chunks counted in parallel: each chunk writes its pairs from its own
         // start in each bundle, so the pairs lie in particle order as a sequential pass puts
         // them.
         let n = grid.particles.len();
-        let chunks = chunk_count(n, nb);
-        let chunk_len = n.div_ceil(chunks).max(1);
-        let counts: Vec<(Vec<u32>, usize)> = grid
-            .particles
-            .par_chunks(chunk_len)
-            .map(|ps| {
-                let mut c = vec![0u32; nb];
-                let mut visible = 0;
-                for f in ps.iter().filter_map(foot) {
-                    visible += 1;
-                    each_pair(&f, &mut |b, _, _| c[b] += 1);
-                }
-                (c, visible)
-            })
-            .collect();
-        grid.particles_visible = counts.iter().map(|c| c.1).sum();
-        let mut offsets = vec![0usize; nb + 1];
-        for (c, _) in &counts {
-            for (o, &k) in offsets[1..].iter_mut().zip(c) {
-                *o += k as usize;
-            }
-        }
-        for b in 0..nb {
-            offsets[b + 1] += offsets[b];
-        }
+        let chunk_len = n.div_ceil(chunk_count(n, nb)).max(1);
+        let (counts, visible) = fp.count(&grid.particles, chunk_len, nb);
+        grid.particles_visible = visible;
+        let offsets = bundle_offsets(&counts, nb);
         // Keys now, then references and the sorted copy: refused before allocating when the
         // view's particle–cell pairs would not fit.
         let pairs = offsets[nb] as u64;
@@ -771,71 +915,8 @@ impl PerspectiveGrid {
             },
             pairs.saturating_mul(PAIR_BYTES),
         )?;
-        // Each chunk's own slice of each bundle's keys.
-        let mut keys = vec![0u64; offsets[nb]];
-        let mut own: Vec<Vec<&mut [u64]>> =
-            (0..counts.len()).map(|_| Vec::with_capacity(nb)).collect();
-        let mut rest = keys.as_mut_slice();
-        for b in 0..nb {
-            for (c, (count, _)) in own.iter_mut().zip(&counts) {
-                let (a, r) = rest.split_at_mut(count[b] as usize);
-                c.push(a);
-                rest = r;
-            }
-        }
-        drop(counts);
-        grid.particles
-            .par_chunks(chunk_len)
-            .zip(own.into_par_iter())
-            .enumerate()
-            .for_each(|(ci, (ps, mut slices))| {
-                let mut used = vec![0u32; nb];
-                for (k, p) in ps.iter().enumerate() {
-                    let Some(f) = foot(p) else { continue };
-                    let j = (ci * chunk_len + k) as u64;
-                    each_pair(&f, &mut |b, z, bit| {
-                        slices[b][used[b] as usize] = ((z as u64) << 33) | ((bit as u64) << 32) | j;
-                        used[b] += 1;
-                    });
-                }
-            });
-        // ... then by (cell, merge bit, particle) within each bundle, in parallel.
-        let mut slices: Vec<&mut [u64]> = Vec::with_capacity(nb);
-        let mut rest = keys.as_mut_slice();
-        for b in 0..nb {
-            let (a, r) = rest.split_at_mut(offsets[b + 1] - offsets[b]);
-            slices.push(a);
-            rest = r;
-        }
-        let per_bundle: Vec<Vec<Cell>> = slices
-            .into_par_iter()
-            .enumerate()
-            .map_init(SortScratch::default, |scratch, (b, s)| {
-                sort_bundle_pairs(s, scratch);
-                let base = offsets[b] as u32;
-                let mut cells: Vec<Cell> = Vec::new();
-                for (i, &k) in s.iter().enumerate() {
-                    let z = (k >> 33) as u32;
-                    let bit = (k >> 32) & 1 == 1;
-                    let i = base + i as u32;
-                    match cells.last_mut() {
-                        Some(c) if c.z == z => {
-                            c.end = i + 1;
-                            if !bit {
-                                c.unique_end = i + 1;
-                            }
-                        }
-                        _ => cells.push(Cell {
-                            z,
-                            start: i,
-                            unique_end: if bit { i } else { i + 1 },
-                            end: i + 1,
-                        }),
-                    }
-                }
-                cells
-            })
-            .collect();
+        let mut keys = fp.keys(&grid.particles, chunk_len, counts, offsets[nb]);
+        let per_bundle = sorted_cells(&mut keys, &offsets);
         grid.refs = keys.iter().map(|&k| k as u32).collect();
         grid.cells.reserve(per_bundle.iter().map(Vec::len).sum());
         for (b, c) in per_bundle.into_iter().enumerate() {

@@ -184,7 +184,7 @@ pub(crate) fn cell_bounds(
     stop: f64,
     scratch: &mut Scratch,
 ) -> CellSamples {
-    let (grid, tfb, params) = (view.grid, view.tfb, view.field);
+    let grid = view.grid;
     #[allow(
         clippy::expect_used,
         reason = "a grid has cells only once its depths are set (GridBuilder); the hot path keeps no error branch"
@@ -197,17 +197,68 @@ pub(crate) fn cell_bounds(
     // single precision, as particles hold the quantity: their extremes are exact), and bit k
     // of `any` set for each sample some particle reaches.
     let mut extremes = extremes::RangeExtremes::new(dz);
-    let mut sum_lo = [0.0f64; 64];
-    let mut sum_hi = [0.0f64; 64];
+    let mut sums = ([0.0f64; 64], [0.0f64; 64]);
+    let any = gather(
+        view,
+        (bundle, cell),
+        (k0, dz),
+        (&mut extremes, &mut sums),
+        scratch,
+    );
+    let Scratch {
+        reaching,
+        others,
+        lanes,
+    } = scratch;
+    let (qlo, qhi) = extremes.per_sample();
+    // Central particles first.
+    reaching.append(others);
+    let coverage = Coverage {
+        parts,
+        particles: &grid.particles,
+        reaching,
+        zs,
+    };
+    // Bit k set for each sample k that some particle reaches and some sub-bundle's rays may
+    // miss.
+    let open = coverage.of(any, lanes);
+    let q = Quantity {
+        qlo: &qlo,
+        qhi: &qhi,
+        sum_lo: &sums.0,
+        sum_hi: &sums.1,
+        any,
+        open,
+    };
+    let steps = sample_steps(view, bundle, (k0, dz), &q, stop);
+    CellSamples {
+        steps,
+        // A sample left open is one that a particle reaches and some sub-bundle's rays may
+        // miss.
+        gappy: open != 0,
+    }
+}
+
+/// Collects the particles of `cell` that reach each of its samples: their quantity's extremes
+/// and (for sums) the sums' bounds per sample, and, for the coverage test, those that cover
+/// the bundle's middle first (`scratch.reaching`) and the others (`scratch.others`). Returns
+/// bit k set for each sample k some particle reaches.
+#[inline(always)]
+fn gather(
+    view: &View,
+    (bundle, cell): (&Bundle, &Cell),
+    (k0, dz): (usize, usize),
+    (extremes, (sum_lo, sum_hi)): (&mut extremes::RangeExtremes, &mut ([f64; 64], [f64; 64])),
+    scratch: &mut Scratch,
+) -> u64 {
+    let (grid, params) = (view.grid, view.field);
     let mut any = 0u64;
     let (mx, my) = (
         0.5 * (bundle.x[0] + bundle.x[1]),
         0.5 * (bundle.y[0] + bundle.y[1]),
     );
     let Scratch {
-        reaching,
-        others,
-        lanes,
+        reaching, others, ..
     } = scratch;
     reaching.clear();
     others.clear();
@@ -242,18 +293,41 @@ pub(crate) fn cell_bounds(
             }
         }
     }
-    let (qlo, qhi) = extremes.per_sample();
-    // Central particles first.
-    reaching.append(others);
-    let coverage = Coverage {
-        parts,
-        particles: &grid.particles,
-        reaching,
-        zs,
-    };
-    // Bit k set for each sample k that some particle reaches and some sub-bundle's rays may
-    // miss.
-    let open = coverage.of(any, lanes);
+    any
+}
+
+/// What a cell's samples hold: the quantity's extremes (CSPH) or the sums' bounds per sample,
+/// the samples some particle reaches (`any`) and those some ray may miss (`open`).
+struct Quantity<'a> {
+    qlo: &'a [f32],
+    qhi: &'a [f32],
+    sum_lo: &'a [f64; 64],
+    sum_hi: &'a [f64; 64],
+    any: u64,
+    open: u64,
+}
+
+/// Each sample's value bound over its step along the bundle's shortest and longest ray: the
+/// transfer function's colour and extinction bounds over the sample's quantity range, with
+/// "nothing" among its values where some ray may miss it or stop before its end (`stop`).
+#[inline(always)]
+fn sample_steps(
+    view: &View,
+    bundle: &Bundle,
+    (k0, dz): (usize, usize),
+    q: &Quantity,
+    stop: f64,
+) -> Vec<(ValueBound, [f64; 2], Bound)> {
+    let (tfb, params) = (view.tfb, view.field);
+    #[allow(
+        clippy::expect_used,
+        reason = "a grid has cells only once its depths are set (GridBuilder); the hot path keeps no error branch"
+    )]
+    let depths = view
+        .grid
+        .depths
+        .as_ref()
+        .expect("cells exist only with depths");
     let tf = tfb.transfer_function();
     let mut steps = Vec::with_capacity(dz);
     // Neighbouring samples mostly see the same particles, so the same value range: its
@@ -262,13 +336,13 @@ pub(crate) fn cell_bounds(
     for k in 0..dz {
         let step = depths.z[k0 + k + 1] - depths.z[k0 + k];
         let ds = [step * bundle.dlen[0], step * bundle.dlen[1]];
-        if any & (1u64 << k) == 0 {
+        if q.any & (1u64 << k) == 0 {
             steps.push(CellSamples::step(ValueBound::EMPTY, ds));
             continue;
         }
         let (a, b) = match params.field {
-            FieldKind::Csph => (f64::from(qlo[k]), f64::from(qhi[k])),
-            _ => (sum_lo[k], sum_hi[k]),
+            FieldKind::Csph => (f64::from(q.qlo[k]), f64::from(q.qhi[k])),
+            _ => (q.sum_lo[k], q.sum_hi[k]),
         };
         let bound = match last {
             Some((range, bound)) if range == (a, b) => bound,
@@ -290,17 +364,12 @@ pub(crate) fn cell_bounds(
         // is then one of its values, as for a coverage gap (the rest of the ray is empty).
         let stopped = depths.z[k0 + k + 1] > stop;
         let vb = ValueBound {
-            may_be_empty: open >> k & 1 != 0 || stopped,
+            may_be_empty: q.open >> k & 1 != 0 || stopped,
             ..bound
         };
         steps.push(CellSamples::step(vb, ds));
     }
-    CellSamples {
-        steps,
-        // A sample left open is one that a particle reaches and some sub-bundle's rays may
-        // miss.
-        gappy: open != 0,
-    }
+    steps
 }
 
 /// [`cell_bounds`] run through [`pulp::Arch::dispatch`], which compiles it for the CPU's

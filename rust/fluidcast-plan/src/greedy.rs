@@ -209,6 +209,34 @@ pub(crate) fn full_rate_bundle(grid: &PerspectiveGrid, b: usize, bound: Bound) -
     }
 }
 
+/// Each cell's level (or [`SamplingPlan::SUPERPIXEL`]) from its choice, counted into
+/// `stats`; and the counts of full-rate, adapted and super-pixel cells and the adapted
+/// levels' sum.
+fn tally(choice: &[Choice], stats: &mut PlanStats) -> (Vec<u8>, (u32, u32, u32, u32)) {
+    let mut levels = vec![0u8; choice.len()];
+    let (mut nfull, mut nadapt, mut nsp, mut lsum) = (0u32, 0u32, 0u32, 0u32);
+    for (c, ch) in choice.iter().enumerate() {
+        match *ch {
+            Choice::Level(l) => {
+                levels[c] = l;
+                stats.level_cells[l as usize] += 1;
+                lsum += l as u32;
+                if l == 0 {
+                    nfull += 1;
+                } else {
+                    nadapt += 1;
+                }
+            }
+            Choice::SuperPixel => {
+                levels[c] = SamplingPlan::SUPERPIXEL;
+                stats.superpixel_cells += 1;
+                nsp += 1;
+            }
+        }
+    }
+    (levels, (nfull, nadapt, nsp, lsum))
+}
+
 /// Bundle `b`'s plan: its analysis and greedy choice of levels, and cell merging (full rate
 /// without a tolerance, or where `analyse` is false).
 pub(crate) fn plan_bundle(
@@ -248,27 +276,7 @@ pub(crate) fn plan_bundle(
     let spans = merge_spans(cells, first, &choice, &cells_in, maxl);
 
     // Statistics and the bundle summary.
-    let mut levels = vec![0u8; n];
-    let (mut nfull, mut nadapt, mut nsp, mut lsum) = (0u32, 0u32, 0u32, 0u32);
-    for (c, ch) in choice.iter().enumerate() {
-        match *ch {
-            Choice::Level(l) => {
-                levels[c] = l;
-                stats.level_cells[l as usize] += 1;
-                lsum += l as u32;
-                if l == 0 {
-                    nfull += 1;
-                } else {
-                    nadapt += 1;
-                }
-            }
-            Choice::SuperPixel => {
-                levels[c] = SamplingPlan::SUPERPIXEL;
-                stats.superpixel_cells += 1;
-                nsp += 1;
-            }
-        }
-    }
+    let (levels, counts) = tally(&choice, &mut stats);
     for s in &spans {
         if s.superpixel.is_none() {
             stats.merged_cells += (s.count - 1) as u64;
@@ -284,6 +292,7 @@ pub(crate) fn plan_bundle(
             p + cast_work(refs, ch),
         ]
     });
+    let (nfull, nadapt, nsp, lsum) = counts;
     let nn = n.max(1) as f32;
     let front_sampled = match spans.first() {
         Some(s) if s.superpixel.is_none() => 1.0,

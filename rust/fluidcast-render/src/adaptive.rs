@@ -253,6 +253,94 @@ fn reaching(rect: [u16; 4], cast: [u32; 4], origin: (u32, u32)) -> Option<Reach>
     })
 }
 
+/// The rays of a bundle that are cast: their pixels (indices into the bundle's pixels, in
+/// block order), the rays by slot, the rays packed in lanes, and the image pixels they cover.
+struct BundleCast {
+    cast: Vec<usize>,
+    rays: Vec<Ray>,
+    lanes: BundleRays,
+    cast_box: [u32; 4],
+}
+
+impl BundleCast {
+    /// The compositors of bundle `b`'s pixels, and the rays of those not done before they
+    /// start (a pixel whose depth range is empty takes no lane; see
+    /// RenderParams::depth_range_at).
+    fn new(
+        grid: &PerspectiveGrid,
+        b: usize,
+        params: &RenderParams,
+    ) -> (Vec<Compositor>, BundleCast) {
+        let [x0, x1, y0, y1] = grid.bundle(b).pixels;
+        let width = (x1 - x0) as usize;
+        let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
+        let comps: Vec<Compositor> = pixels
+            .map(|(i, j)| Compositor::for_pixel(params, i, j))
+            .collect();
+        let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
+        cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
+        // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's
+        // pixels forms a quarter of its rays).
+        let pixel = |r: usize| (x0 + (r % width) as u32, y0 + (r / width) as u32);
+        let rays: Vec<Ray> = cast
+            .iter()
+            .map(|&r| {
+                let (i, j) = pixel(r);
+                Ray::through_pixel(&grid.frame, i, j)
+            })
+            .collect();
+        let lanes = BundleRays::new(
+            cast.iter()
+                .zip(&rays)
+                .map(|(&r, &ray)| ((r % width, r / width), ray)),
+        );
+        // The image pixels of the rays cast: a particle's rectangle must meet them.
+        let cast_box = cast
+            .iter()
+            .fold([u32::MAX, 0, u32::MAX, 0], |[a, b, c, d], &r| {
+                let (i, j) = pixel(r);
+                [a.min(i), b.max(i + 1), c.min(j), d.max(j + 1)]
+            });
+        let bc = BundleCast {
+            cast,
+            rays,
+            lanes,
+            cast_box,
+        };
+        (comps, bc)
+    }
+}
+
+/// Composites each cast ray's samples of one span (those that received any weight) and
+/// clears its sums.
+fn composite(
+    cast: &[usize],
+    rays: &[Ray],
+    comps: &mut [Compositor],
+    (sums, zs): (&mut SpanSums, &SpanDepths),
+    tf: &TfLookup,
+    params: &RenderParams,
+) {
+    for (slot, &r) in cast.iter().enumerate() {
+        let (ray, c) = (&rays[slot], &mut comps[r]);
+        for m in sums.touched(slot) {
+            if c.done {
+                break;
+            }
+            if let Some(q) = sums.value(m, slot, params.field) {
+                c.sample(
+                    tf,
+                    q,
+                    (zs.z()[m], zs.z()[m + 1]),
+                    ray.dlen,
+                    params.min_transmittance,
+                );
+            }
+        }
+        sums.clear(slot);
+    }
+}
+
 /// Ray casts bundle `b` of the plan: per span (Alg. 2: every ray of the bundle samples the
 /// same particles, at D_z positions spaced 2^level samples apart), each particle adds its
 /// kernel weights to the rays its footprint reaches, then each ray composites the samples
@@ -268,40 +356,14 @@ fn cast_bundle(
     scratch: &mut BundleScratch,
 ) -> BundleResult {
     let dz = grid.params.depth_samples as usize;
-    let [x0, x1, y0, y1] = grid.bundle(b).pixels;
-    let width = (x1 - x0) as usize;
-    let pixels = (y0..y1).flat_map(|j| (x0..x1).map(move |i| (i, j)));
-    let mut comps: Vec<Compositor> = pixels
-        .map(|(i, j)| Compositor::for_pixel(params, i, j))
-        .collect();
-    // The rays to cast, packed: a pixel whose depth range is empty is done before it starts
-    // (see RenderParams::depth_range_at) and takes no lane; the others go in block order.
-    let mut cast: Vec<usize> = (0..comps.len()).filter(|&r| !comps[r].done).collect();
-    cast.sort_by_key(|&r| crate::span::block_key(r % width, r / width));
-    // The rays of the pixels cast, by slot (a pass that casts a quarter of a bundle's pixels
-    // forms a quarter of its rays).
-    let rays: Vec<Ray> = cast
-        .iter()
-        .map(|&r| {
-            Ray::through_pixel(
-                &grid.frame,
-                x0 + (r % width) as u32,
-                y0 + (r / width) as u32,
-            )
-        })
-        .collect();
-    let lanes = BundleRays::new(
-        cast.iter()
-            .zip(&rays)
-            .map(|(&r, &ray)| ((r % width, r / width), ray)),
-    );
-    // The image pixels of the rays cast: a particle's rectangle must meet them.
-    let cast_box = cast
-        .iter()
-        .fold([u32::MAX, 0, u32::MAX, 0], |[a, b, c, d], &r| {
-            let (i, j) = (x0 + (r % width) as u32, y0 + (r / width) as u32);
-            [a.min(i), b.max(i + 1), c.min(j), d.max(j + 1)]
-        });
+    let [x0, _, y0, _] = grid.bundle(b).pixels;
+    let (mut comps, rays) = BundleCast::new(grid, b, params);
+    let BundleCast {
+        cast,
+        rays,
+        lanes,
+        cast_box,
+    } = rays;
     for span in plan.bundle_spans(b) {
         if cast.iter().all(|&r| comps[r].done) {
             break;
@@ -353,24 +415,7 @@ fn cast_bundle(
             kernel: params.kernel,
             field: params.field,
         });
-        for (slot, &r) in cast.iter().enumerate() {
-            let (ray, c) = (&rays[slot], &mut comps[r]);
-            for m in sums.touched(slot) {
-                if c.done {
-                    break;
-                }
-                if let Some(q) = sums.value(m, slot, params.field) {
-                    c.sample(
-                        tf,
-                        q,
-                        (zs.z()[m], zs.z()[m + 1]),
-                        ray.dlen,
-                        params.min_transmittance,
-                    );
-                }
-            }
-            sums.clear(slot);
-        }
+        composite(&cast, &rays, &mut comps, (sums, zs), tf, params);
     }
     let samples = comps.iter().map(|c| c.samples).sum();
     let pixels = cast.iter().map(|&r| {

@@ -170,16 +170,9 @@ impl Slab {
     }
 }
 
-/// Renders `particles` through a perspective grid of one column per `cell × cell` pixels
-/// (see the module documentation).
-pub fn render_perspective_grid(
-    particles: &Particles,
-    camera: &Camera,
-    tf: &TransferFunction,
-    params: &RenderParams,
-    cell: u32,
-) -> Result<(Image, RenderStats), RenderError> {
-    let t0 = Instant::now();
+/// What the perspective grid does not draw, refused before any work: a grid cell out of
+/// range, a shaded volume, iso-surfaces of another array.
+fn check(particles: &Particles, params: &RenderParams, cell: u32) -> Result<(), RenderError> {
     if !(1..=MAX_CELL).contains(&cell) {
         return Err(RenderError::GridCell(cell));
     }
@@ -193,6 +186,20 @@ pub fn render_perspective_grid(
             return Err(SurfaceError::Unsupported(what).into());
         }
     }
+    Ok(())
+}
+
+/// Renders `particles` through a perspective grid of one column per `cell × cell` pixels
+/// (see the module documentation).
+pub fn render_perspective_grid(
+    particles: &Particles,
+    camera: &Camera,
+    tf: &TransferFunction,
+    params: &RenderParams,
+    cell: u32,
+) -> Result<(Image, RenderStats), RenderError> {
+    let t0 = Instant::now();
+    check(particles, params, cell)?;
     let RayView {
         frame,
         mut stats,
@@ -234,40 +241,7 @@ pub fn render_perspective_grid(
             first: None,
         })
         .collect();
-    let (mut resample_ms, mut raycast_ms) = (0.0, 0.0);
-    let mut slab = Slab::new(&layout, params.surfaces.as_deref())?;
-    let n = depths.len();
-    let mut skip = vec![false; bins.len()];
-    for s0 in (0..n).step_by(SLAB) {
-        if rays.iter().all(|r| r.comp.done) {
-            break;
-        }
-        let t = Instant::now();
-        if params.occlusion_culling {
-            occluded_tiles(&layout, &rays, &mut skip);
-            stats.culled += skip
-                .iter()
-                .zip(&bins)
-                .filter(|(&s, _)| s)
-                .map(|(_, b)| b.len() as u64)
-                .sum::<u64>();
-        }
-        let own = s0..(s0 + SLAB).min(n);
-        resample(
-            &mut slab,
-            (&layout, params),
-            &vps,
-            (&bins, &skip),
-            &depths,
-            own,
-        );
-        resample_ms += ms(t);
-        let t = Instant::now();
-        rays.par_chunks_mut(w as usize)
-            .enumerate()
-            .for_each(|(j, row)| march.row(&slab, j as u32, row));
-        raycast_ms += ms(t);
-    }
+    let (resample_ms, raycast_ms) = march.slabs(&vps, &bins, &mut rays, &mut stats)?;
     finish(&mut image, &mut stats, &rays, params.surfaces.is_some());
     stats.stages.push(("resample", resample_ms));
     stats.stages.push(("raycast", raycast_ms));
@@ -457,6 +431,47 @@ struct March<'a> {
 }
 
 impl March<'_> {
+    /// Resamples the particles (`vps`, binned in `bins`) slab by slab and marches every ray
+    /// through each slab, until every ray is done; occlusion culling skips the tiles no
+    /// marching pixel reads. Returns the milliseconds of resampling and of ray marching.
+    fn slabs(
+        &self,
+        vps: &[ViewParticle],
+        bins: &[Vec<u32>],
+        rays: &mut [SurfaceRay],
+        stats: &mut RenderStats,
+    ) -> Result<(f64, f64), RenderError> {
+        let (layout, params, depths) = (self.layout, self.params, self.depths);
+        let (mut resample_ms, mut raycast_ms) = (0.0, 0.0);
+        let mut slab = Slab::new(layout, params.surfaces.as_deref())?;
+        let n = depths.len();
+        let mut skip = vec![false; bins.len()];
+        for s0 in (0..n).step_by(SLAB) {
+            if rays.iter().all(|r| r.comp.done) {
+                break;
+            }
+            let t = Instant::now();
+            if params.occlusion_culling {
+                occluded_tiles(layout, rays, &mut skip);
+                stats.culled += skip
+                    .iter()
+                    .zip(bins)
+                    .filter(|(&s, _)| s)
+                    .map(|(_, b)| b.len() as u64)
+                    .sum::<u64>();
+            }
+            let own = s0..(s0 + SLAB).min(n);
+            resample(&mut slab, (layout, params), vps, (bins, &skip), depths, own);
+            resample_ms += ms(t);
+            let t = Instant::now();
+            rays.par_chunks_mut(params.width as usize)
+                .enumerate()
+                .for_each(|(j, row)| self.row(&slab, j as u32, row));
+            raycast_ms += ms(t);
+        }
+        Ok((resample_ms, raycast_ms))
+    }
+
     /// Marches row `j`'s rays through the slab's own slices.
     fn row(&self, slab: &Slab, j: u32, rays: &mut [SurfaceRay]) {
         let l = self.layout;

@@ -223,6 +223,82 @@ impl RayView {
     }
 }
 
+/// The particles (indices into `vps`) whose support's screen rectangle meets each screen tile
+/// of `TILE` pixels, and how many reach the image at all. Refused before allocating when the
+/// references would not fit the memory budget.
+fn bin_particles(
+    frame: &ViewFrame,
+    vps: &[ViewParticle],
+    (near, far): (f64, f64),
+    (w, h): (u32, u32),
+) -> Result<(Vec<Vec<u32>>, usize), RenderError> {
+    let (tiles_x, tiles_y) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    let rects: Vec<Option<[u32; 4]>> = vps
+        .iter()
+        .map(|p| screen_rect(frame, p, near, far))
+        .collect();
+    let refs: u64 = rects
+        .iter()
+        .flatten()
+        .map(|r| {
+            u64::from((r[1] - 1) / TILE - r[0] / TILE + 1)
+                * u64::from((r[3] - 1) / TILE - r[2] / TILE + 1)
+        })
+        .sum();
+    fluidcast_mem::check(
+        || format!("binning {refs} particle–tile references at {w}x{h}"),
+        refs.saturating_mul(4),
+    )
+    .map_err(GridError::from)?;
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
+    let mut visible = 0;
+    for (j, rect) in rects.iter().enumerate() {
+        let Some([px0, px1, py0, py1]) = *rect else {
+            continue;
+        };
+        visible += 1;
+        for ty in py0 / TILE..=(py1 - 1) / TILE {
+            for tx in px0 / TILE..=(px1 - 1) / TILE {
+                bins[(ty * tiles_x + tx) as usize].push(j as u32);
+            }
+        }
+    }
+    Ok((bins, visible))
+}
+
+/// Pastes the tiles' pixels into `image` (and, `with_normals`, the surface normals as AOVs);
+/// returns the samples they took.
+fn paste_tiles(
+    image: &mut Image,
+    results: Vec<TileResult>,
+    tiles_x: u32,
+    with_normals: bool,
+) -> u64 {
+    let (w, h) = (image.width, image.height);
+    let mut samples = 0;
+    let mut normals = vec![[0.0f32; 3]; if with_normals { image.rgba.len() } else { 0 }];
+    for (t, px, n) in results {
+        samples += n;
+        let (tx, ty) = (t % tiles_x, t / tiles_x);
+        let mut k = 0;
+        for j in ty * TILE..((ty + 1) * TILE).min(h) {
+            for i in tx * TILE..((tx + 1) * TILE).min(w) {
+                let idx = image.index(i, j);
+                image.rgba[idx] = px[k].rgba;
+                image.depth[idx] = px[k].depth;
+                if with_normals {
+                    normals[idx] = px[k].normal;
+                }
+                k += 1;
+            }
+        }
+    }
+    if with_normals {
+        add_normal_aovs(image, &normals);
+    }
+    samples
+}
+
 /// Renders `particles` with the reference renderer. The image holds premultiplied RGBA and
 /// per-pixel depth (see [`Image`]).
 pub fn render_reference(
@@ -248,36 +324,8 @@ pub fn render_reference(
 
     // Bin particles into screen tiles by a conservative screen-space bound of their support.
     let tiles_x = w.div_ceil(TILE);
-    let tiles_y = h.div_ceil(TILE);
-    let rects: Vec<Option<[u32; 4]>> = vps
-        .iter()
-        .map(|p| screen_rect(&frame, p, near, far))
-        .collect();
-    let refs: u64 = rects
-        .iter()
-        .flatten()
-        .map(|r| {
-            u64::from((r[1] - 1) / TILE - r[0] / TILE + 1)
-                * u64::from((r[3] - 1) / TILE - r[2] / TILE + 1)
-        })
-        .sum();
-    fluidcast_mem::check(
-        || format!("binning {refs} particle–tile references at {w}x{h}"),
-        refs.saturating_mul(4),
-    )
-    .map_err(GridError::from)?;
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tiles_x * tiles_y) as usize];
-    for (j, rect) in rects.iter().enumerate() {
-        let Some([px0, px1, py0, py1]) = *rect else {
-            continue;
-        };
-        stats.particles_visible += 1;
-        for ty in py0 / TILE..=(py1 - 1) / TILE {
-            for tx in px0 / TILE..=(px1 - 1) / TILE {
-                bins[(ty * tiles_x + tx) as usize].push(j as u32);
-            }
-        }
-    }
+    let (bins, visible) = bin_particles(&frame, &vps, (near, far), (w, h))?;
+    stats.particles_visible += visible;
     stats.stages.push(("bin", ms(t0)));
 
     // Ray cast tile by tile.
@@ -302,27 +350,7 @@ pub fn render_reference(
             (t as u32, out, samples)
         })
         .collect();
-    let with_normals = params.surfaces.is_some();
-    let mut normals = vec![[0.0f32; 3]; if with_normals { image.rgba.len() } else { 0 }];
-    for (t, px, n) in results {
-        stats.samples += n;
-        let (tx, ty) = (t % tiles_x, t / tiles_x);
-        let mut k = 0;
-        for j in ty * TILE..((ty + 1) * TILE).min(h) {
-            for i in tx * TILE..((tx + 1) * TILE).min(w) {
-                let idx = image.index(i, j);
-                image.rgba[idx] = px[k].rgba;
-                image.depth[idx] = px[k].depth;
-                if with_normals {
-                    normals[idx] = px[k].normal;
-                }
-                k += 1;
-            }
-        }
-    }
-    if with_normals {
-        add_normal_aovs(&mut image, &normals);
-    }
+    stats.samples += paste_tiles(&mut image, results, tiles_x, params.surfaces.is_some());
     stats.stages.push(("raycast", ms(t1)));
     stats.stages.push(("total", ms(t0)));
     Ok((image, stats))
