@@ -13,6 +13,7 @@
 //! when there is one and otherwise renders on the CPU with a note: a software driver (Mesa's
 //! lavapipe or llvmpipe) is slower than the CPU renderer, so it is used only when asked for
 //! (`gpu`, or an adapter by name).
+#![warn(missing_docs)]
 
 use std::fmt;
 use std::str::FromStr;
@@ -80,22 +81,33 @@ impl fmt::Display for Backend {
 /// Why a backend could not be opened or a frame not rendered.
 #[derive(Debug, thiserror::Error)]
 pub enum BackendError {
+    /// A backend name other than auto, cpu or gpu.
     #[error("backend '{0}': expected auto, cpu or gpu")]
     Name(String),
+    /// The GPU could not be opened or could not draw the frame.
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    /// A CPU renderer refused the frame (parameters, surfaces, memory budget).
     #[error(transparent)]
     Render(#[from] RenderError),
+    /// The RBF field could not be built (radii, attribute, leaf size).
     #[error(transparent)]
     Rbf(#[from] RbfError),
+    /// The level-of-detail hierarchy or cut could not be made.
     #[error("level of detail: {0}")]
     Lod(#[from] fluidcast_lod::LodError),
+    /// The camera cannot see (a degenerate or non-finite view).
     #[error("{0}")]
     Camera(#[from] fluidcast_view::CameraError),
     /// A plan the renderer cannot draw (a combination not supported yet), said in words;
     /// `item` says which part of the plan, for a front-end to name its option or property.
     #[error("{why}")]
-    Refused { item: PlanItem, why: String },
+    Refused {
+        /// The part of the plan refused.
+        item: PlanItem,
+        /// Why, for the user.
+        why: String,
+    },
     /// A state the renderer should never be in (a bug), said in words.
     #[error("{0}")]
     Plan(String),

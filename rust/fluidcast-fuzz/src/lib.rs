@@ -11,6 +11,7 @@
 //! A panic is caught and reported as a [`Finding`]; aborts, hangs and huge allocations
 //! are caught by the runner (`fluidcast-fuzz` binary), which runs under an address-space
 //! limit and a watchdog.
+#![warn(missing_docs)]
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
@@ -25,9 +26,11 @@ use fluidcast_view::{Camera, TransferFunction};
 pub struct Rng(u64);
 
 impl Rng {
+    /// A generator whose sequence is fixed by `seed`.
     pub fn new(seed: u64) -> Rng {
         Rng(seed)
     }
+    /// The next 64 random bits (SplitMix64).
     pub fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
@@ -167,6 +170,7 @@ pub enum Outcome {
 /// A panic: the bug class this harness exists to find.
 #[derive(Debug, Clone)]
 pub struct Finding {
+    /// The panic message and where it happened.
     pub message: String,
 }
 

@@ -24,6 +24,7 @@ use crate::{cast, push_stage, Gpu, GpuError};
 pub struct GpuDump {
     /// Cells in GPU order (by bundle, then depth), with their bundle.
     pub cells: Vec<Cell>,
+    /// The bundle of each cell of `cells`.
     pub cell_bundles: Vec<u32>,
     /// Particle indices grouped by cell.
     pub refs: Vec<u32>,

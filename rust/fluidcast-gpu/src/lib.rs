@@ -27,6 +27,7 @@
 //! running them in order, `layout` holding the structs the host shares with the WGSL (size and
 //! offsets checked against naga's layout) and `pass` the pipelines, whose bindings are looked
 //! up by the WGSL global's name.
+#![warn(missing_docs)]
 
 mod adapter;
 mod frame;
@@ -51,31 +52,45 @@ pub use frame::GpuDump;
 /// Why the GPU path could not run.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
+    /// No wgpu adapter at all (no GPU driver, no lavapipe).
     #[error("no GPU adapter found (wgpu: {0}); on a machine without a GPU install Mesa's lavapipe (Debian: mesa-vulkan-drivers)")]
     NoAdapter(String),
+    /// `auto` found only software adapters.
     #[error("no hardware GPU (adapters: {0})")]
     NoHardware(String),
+    /// No adapter's name contains the one asked for (the name, the adapters).
     #[error("no GPU adapter's name contains '{0}' (adapters: {1})")]
     NoSuchAdapter(String, String),
+    /// The adapter would not give a device, or the device was lost.
     #[error("GPU device: {0}")]
     Device(String),
+    /// A ray bundle larger than the GPU's 8x8 pixels.
     #[error("the GPU renderer supports ray bundles of at most 8x8 pixels (--bundle {0})")]
     BundleTooLarge(u32),
+    /// More particle–cell pairs than the GPU's buffers take (pairs, limit).
     #[error("the view needs {0} particle-cell pairs, more than the GPU renderer's limit of {1}; render a smaller image, fewer particles or use --backend cpu")]
     TooManyPairs(u64, u64),
+    /// More non-empty cells than the GPU's buffers take (cells, limit).
     #[error("the view has {0} non-empty cells, more than the GPU renderer's limit of {1}; render a smaller image or use --backend cpu")]
     TooManyCells(u64, u64),
+    /// Bundles × cells beyond the 32-bit cell keys (bundles, cells per bundle).
     #[error("the view has {0} bundles x {1} cells, too many for the GPU grid's 32-bit cell keys; render a smaller image or lower --sampling")]
     GridTooLarge(u64, u64),
+    /// More particles than the GPU takes (particles, limit).
     #[error("{0} particles are more than the GPU renderer takes ({1})")]
     TooManyParticles(usize, u64),
+    /// A software driver's loop limit would end a shader invocation early: refused, never drawn wrong.
     #[error("{adapter} is a software driver (Mesa llvmpipe/lavapipe), which silently ends every shader invocation after 65535 loop iterations, and {stage} of this view needs more in one ray bundle; render with --backend cpu (auto does), at a larger image size or on a hardware GPU")]
     LoopLimit {
+        /// The adapter's name.
         adapter: String,
+        /// The stage that needs more iterations.
         stage: &'static str,
     },
+    /// A transfer function with more control points than the shader's table.
     #[error("the transfer function has {0} control points; the GPU renderer takes at most {max} per table", max = MAX_TF_POINTS)]
     TransferFunction(usize),
+    /// What the CPU renderer's checks refuse (shared parameters).
     #[error(transparent)]
     Render(#[from] RenderError),
 }

@@ -2,6 +2,7 @@
 //!
 //! Rows are stored top row first (PNG/EXR order); pixel (i, j) covers [i, i+1) × [j, j+1)
 //! with j = 0 the top row. Colours are linear, **premultiplied** by alpha.
+#![warn(missing_docs)]
 
 use std::path::{Path, PathBuf};
 
@@ -17,18 +18,28 @@ use exr::prelude::{
 /// treats colours as linear light and applies the sRGB transfer curve (brighter mid-tones).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PngEncoding {
+    /// Colour values written as they are, as VTK and ParaView screenshots write them.
     #[default]
     Vtk,
+    /// Colours taken as linear light and encoded with the sRGB transfer curve.
     Srgb,
 }
 
 /// An image problem, naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
+    /// Reading or writing `file` failed.
     #[error("{file}: {message}")]
-    File { file: PathBuf, message: String },
+    File {
+        /// The image file.
+        file: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// Two images compared have different sizes (width × height of each).
     #[error("images differ in size: {0}x{1} vs {2}x{3}")]
     SizeMismatch(u32, u32, u32, u32),
+    /// A file name whose extension is neither .exr nor .png.
     #[error("unsupported image format for '{0}' (use .exr or .png)")]
     Format(PathBuf),
 }
@@ -45,9 +56,13 @@ fn ferr(file: &Path, e: impl std::fmt::Display) -> ImageError {
 /// +∞ where it never did.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Image {
+    /// Pixels per row.
     pub width: u32,
+    /// Rows.
     pub height: u32,
+    /// Premultiplied linear RGBA per pixel, row by row from the top.
     pub rgba: Vec<[f32; 4]>,
+    /// View depth per pixel (world units; +∞: opacity never passed ½).
     pub depth: Vec<f32>,
     /// Extra per-pixel channels (arbitrary output values: diagnostics such as a predicted
     /// error bound), written as further EXR channels under their names.

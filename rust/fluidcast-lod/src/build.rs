@@ -253,10 +253,15 @@ fn runs_of(keys: &[u64], shift: u32) -> Vec<(usize, usize)> {
 /// units of [`Particles`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LodNode {
+    /// World-space centre.
     pub position: [f32; 3],
+    /// Support radius (world units).
     pub radius: f32,
+    /// Volume (world units³).
     pub volume: f32,
+    /// Mass.
     pub mass: f32,
+    /// The rendered attribute (volume-weighted mean of the merged particles).
     pub value: f32,
 }
 

@@ -11,6 +11,7 @@
 //!   which lets a user or a test set a lower limit.
 //!
 //! Where none of these can be read (not Linux), there is no budget and every check passes.
+#![warn(missing_docs)]
 
 use std::fmt;
 
@@ -160,8 +161,10 @@ pub fn check(what: impl FnOnce() -> String, needed: u64) -> Result<(), MemError>
 /// Why a whole file could not be read into memory.
 #[derive(Debug, thiserror::Error)]
 pub enum FileError {
+    /// The operating system's error (missing file, permission).
     #[error("cannot read file: {0}")]
     Io(#[from] std::io::Error),
+    /// A directory where a file was expected.
     #[error("is a directory, not a file")]
     Directory,
     /// A FIFO, socket or device: reading it could wait for a writer forever, or never end.
@@ -169,6 +172,7 @@ pub enum FileError {
         "is {0}, not a regular file (reading it could wait forever): copy the data into a file"
     )]
     NotRegular(&'static str),
+    /// More than the memory budget allows (what it would take, in words).
     #[error("too large: {0}")]
     TooLarge(String),
 }
