@@ -1,3 +1,5 @@
+//! Builds the cxx bridge's C++ side (headers and glue) for the VTK mapper.
+
 fn main() {
     // Generates the C++ side of the bridge. The headers land in
     // $CARGO_TARGET_DIR/cxxbridge/ (fluidcast-cxx/src/lib.rs.h and rust/cxx.h), where the

@@ -15,6 +15,7 @@
 //!
 //! Every entry point returns `Result`: C++ sees a `rust::Error` exception carrying the
 //! message. Panics are caught and turned into errors; none crosses the boundary.
+#![warn(missing_docs)]
 
 mod plan;
 mod reader;
@@ -42,11 +43,17 @@ mod ffi {
     /// vtkCamera's fields (world space; `view_angle` vertical, degrees).
     #[derive(Debug, Clone)]
     struct CameraDesc {
+        /// The eye (world units).
         position: [f64; 3],
+        /// The point looked at.
         focal_point: [f64; 3],
+        /// The up direction.
         view_up: [f64; 3],
+        /// Vertical view angle, degrees (perspective).
         view_angle: f64,
+        /// Parallel instead of perspective projection.
         parallel_projection: bool,
+        /// Half the view's height, world units (parallel projection).
         parallel_scale: f64,
     }
 
@@ -63,6 +70,7 @@ mod ffi {
         support_radius: f64,
         /// Per-particle radius array ("" = none); H = `radius_scale` x value.
         radius_array: String,
+        /// Factor from `radius_array`'s values to support radii.
         radius_scale: f64,
         /// Kernel name as the CLI's `--kernel` (cubic, quintic, wendland-c2, ...).
         kernel: String,
@@ -111,8 +119,11 @@ mod ffi {
         /// The adaptive plan's switches, as the CLI's `--no-probe`, `--no-superpixels`,
         /// `--no-surface-cells` and `--no-interpolation` turn them off.
         probe: bool,
+        /// See `probe`.
         superpixels: bool,
+        /// See `probe`.
         surface_cells: bool,
+        /// See `probe`.
         interpolate: bool,
         /// Render each view in at least this many screen tiles (the CLI's `--tiles`; 0: as
         /// the memory limit needs).
@@ -134,22 +145,34 @@ mod ffi {
         with_volume: bool,
         /// Blinn–Phong lighting with a headlight (vtkVolumeProperty's Shade); off: flat.
         shade: bool,
+        /// Ambient share of the lighting (0..1).
         ambient: f64,
+        /// Diffuse share (0..1).
         diffuse: f64,
+        /// Specular share (0..1).
         specular: f64,
+        /// Specular exponent.
         specular_power: f64,
     }
 
     /// What a render did (for the mapper's messages and tests).
     #[derive(Debug, Clone, Default)]
     struct RenderInfo {
+        /// Particles rendered.
         particles: u64,
+        /// Points left out for NaN/Inf coordinates.
         skipped_nonfinite: u64,
+        /// Smallest support radius (world units).
         radius_min: f64,
+        /// Largest support radius (world units).
         radius_max: f64,
+        /// Smallest value of the rendered array.
         value_min: f64,
+        /// Largest value of the rendered array.
         value_max: f64,
+        /// Depth samples composited.
         samples: u64,
+        /// Milliseconds the call took.
         total_ms: f64,
         /// How radius and volumes were chosen (one line each), and why `auto` rendered on
         /// the CPU when it did.

@@ -5,7 +5,9 @@
 /// full-rate and the adaptive rendering, lie inside `[lo, hi]` per channel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bound {
+    /// Lower bounds of premultiplied intensity (r, g, b) and transmittance.
     pub lo: [f64; 4],
+    /// Upper bounds of the same.
     pub hi: [f64; 4],
 }
 

@@ -49,6 +49,7 @@
 //! * The greedy takes the cheapest option under the budget (super-pixel, then the highest
 //!   level), where the paper takes the widest bound; they differ only where a finer level's
 //!   bound is wider.
+#![warn(missing_docs)]
 
 mod analyse;
 mod coverage;
@@ -79,7 +80,9 @@ pub use tfbounds::{TfBounds, TfRange};
 pub struct Span {
     /// Index of the first cell in [`PerspectiveGrid::cells`].
     pub first: u32,
+    /// Cells in the span (a power of two).
     pub count: u32,
+    /// Sampling level: every `2^level`-th depth sample.
     pub level: u8,
     /// Super-pixel value (I rgb, T), the midpoint of the cell's full-rate bound.
     pub superpixel: Option<[f32; 4]>,
@@ -93,9 +96,11 @@ pub struct BundleSummary {
     pub predicted_error: f32,
     /// Mean sampling level over the bundle's sampled cells.
     pub mean_level: f32,
-    /// Shares of the bundle's cells at full rate, adapted in depth, and super-pixels.
+    /// Share of the bundle's cells at full rate.
     pub full: f32,
+    /// Share adapted in depth (level above 0).
     pub adapted: f32,
+    /// Share drawn as super-pixels.
     pub superpixel: f32,
     /// 1 when the bundle's first (front-most) cell is sampled, 0 when it is a super-pixel or
     /// the bundle is empty: where rays spend their work, since they stop in the first cells
@@ -106,9 +111,11 @@ pub struct BundleSummary {
 /// Counts over all cells.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlanStats {
+    /// Non-empty cells of the grid.
     pub cells: u64,
     /// Cells per chosen level (index 0 = full rate).
     pub level_cells: [u64; LEVELS],
+    /// Cells drawn as super-pixels.
     pub superpixel_cells: u64,
     /// Cells forced to full rate by the surface test.
     pub surface_cells: u64,
@@ -139,6 +146,7 @@ impl PlanStats {
 /// The sampling plan for one view.
 #[derive(Debug, Clone)]
 pub struct SamplingPlan {
+    /// Every bundle's spans, bundle after bundle, front to back ([`SamplingPlan::bundle_spans`]).
     pub spans: Vec<Span>,
     bundle_spans: Vec<u32>,
     /// Chosen level per grid cell ([`SamplingPlan::SUPERPIXEL`] for super-pixels).
@@ -146,8 +154,11 @@ pub struct SamplingPlan {
     /// Per bundle: the full-rate (level 0, unrelaxed) bound, which holds every full-rate
     /// pixel of the bundle, and the bound of the chosen plan; empty without adaptivity.
     pub full_bounds: Vec<Bound>,
+    /// Per bundle: the bound of the chosen plan.
     pub plan_bounds: Vec<Bound>,
+    /// Per bundle: what the analysis chose, for diagnostics.
     pub summaries: Vec<BundleSummary>,
+    /// Counts over all cells.
     pub stats: PlanStats,
 }
 

@@ -10,8 +10,11 @@ pub(crate) const LEVELS: usize = 7;
 /// transmittance (which the error budget accounts for).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FieldParams {
+    /// The smoothing kernel.
     pub kernel: Kernel,
+    /// The field reconstructed (CSPH, SPH sum, density).
     pub field: FieldKind,
+    /// Transmittance below which a ray stops (early termination).
     pub min_transmittance: f64,
 }
 
@@ -85,12 +88,16 @@ impl PlanParams {
 /// Why a plan could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum PlanError {
+    /// An error tolerance outside [0, 1].
     #[error("error tolerance {0} must be in [0, 1]")]
     Tolerance(f64),
+    /// A relaxation outside [0, 1].
     #[error("relaxation {0} must be in [0, 1]")]
     Relax(f64),
+    /// Surface flags of another particle count (flags, particles).
     #[error("surface flags: {0} given for {1} particles")]
     SurfaceFlags(usize, usize),
+    /// Depth stops of another bundle count (stops, bundles).
     #[error("depth stops: {0} given for {1} bundles")]
     Stops(usize, usize),
 }

@@ -9,6 +9,7 @@ use crate::params::LEVELS;
 /// row, is in the probe ([`crate::PlanParams::probe`]): an eighth of the image, spread evenly over
 /// it. (plan.wgsl reads these constants.)
 pub const PROBE_STRIDE: u32 = 8;
+/// See [`PROBE_STRIDE`].
 pub const PROBE_ROW_SHIFT: u32 = 3;
 
 pub(crate) fn is_probe_bundle(bundles_x: u32, b: usize) -> bool {
@@ -34,6 +35,7 @@ pub(crate) fn cast_work(refs: u32, choice: Choice) -> u64 {
 /// ignoring early termination and merging, with a margin on both sides. (plan.wgsl reads
 /// these constants.)
 pub const PROBE_SAVING_NUM: u64 = 1;
+/// See [`PROBE_SAVING_NUM`].
 pub const PROBE_SAVING_DEN: u64 = 5;
 
 /// Whether the probe's bundles, planned, predict that analysing the others pays: exactly

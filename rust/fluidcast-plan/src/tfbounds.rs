@@ -46,10 +46,13 @@ impl RangeTable {
 /// Bounds of colour and opacity over a value interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TfRange {
+    /// Lowest colour (r, g, b) over the interval.
     pub rgb_lo: [f64; 3],
+    /// Highest colour over the interval.
     pub rgb_hi: [f64; 3],
-    /// Opacity per unit distance (before the step correction).
+    /// The lowest opacity per unit distance (before the step correction).
     pub alpha_lo: f64,
+    /// The highest opacity per unit distance.
     pub alpha_hi: f64,
 }
 
@@ -66,6 +69,7 @@ pub struct TfBounds {
 }
 
 impl TfBounds {
+    /// The range tables of `tf`'s colour and opacity control points.
     pub fn new(tf: &TransferFunction) -> TfBounds {
         let colour_x: Vec<f64> = tf.colors.iter().map(|c| c.0).collect();
         let colour = [0, 1, 2]
@@ -81,6 +85,7 @@ impl TfBounds {
         }
     }
 
+    /// The transfer function the tables were made from.
     pub fn transfer_function(&self) -> &TransferFunction {
         &self.tf
     }
