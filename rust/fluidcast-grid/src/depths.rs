@@ -12,8 +12,11 @@ pub const MAX_SAMPLES: usize = 1 << 17;
 /// `[z[i], z[i+1])`.
 #[derive(Debug, Clone)]
 pub struct SampleDepths {
+    /// The sample depths, N + 1 of them (view depth, world units).
     pub z: Vec<f64>,
+    /// View depth of the first sample.
     pub near: f64,
+    /// View depth where the last step ends.
     pub far: f64,
     /// Logarithmic (perspective) or uniform (parallel projection).
     pub logarithmic: bool,

@@ -13,6 +13,7 @@
 //! References are sorted by (bundle, cell depth, merge bit), where the merge bit (Sec. 6.2)
 //! says the particle is referenced by the next cell in depth as well; a cell's references
 //! with the bit clear come first, so the references of merged cells are contiguous runs.
+#![warn(missing_docs)]
 
 mod depths;
 
@@ -30,16 +31,22 @@ pub const PAIR_BYTES: u64 = 24;
 /// Why a grid could not be built.
 #[derive(Debug, thiserror::Error)]
 pub enum GridError {
+    /// A sampling scale that is not a finite number > 0.
     #[error("sampling scale {0} must be finite and > 0")]
     SamplingScale(f64),
+    /// More depth samples per ray than the grid takes.
     #[error("the view needs {0} samples per ray (more than {MAX_SAMPLES}): the near plane is too close to the camera relative to the data; move the camera or lower the sampling scale")]
     TooManySamples(usize),
+    /// A bundle size D_xy out of 1..=64 pixels.
     #[error("bundle size {0} must be 1..=64 pixels")]
     BundleSize(u32),
+    /// D_z not a power of two in 1..=64.
     #[error("depth samples per cell {0} must be a power of two in 1..=64")]
     DepthSamples(u32),
+    /// The grid would exceed the memory budget.
     #[error("{0}; use a smaller image or fewer, smaller particles in view")]
     Memory(#[from] fluidcast_mem::MemError),
+    /// An image too large for 16-bit pixel rectangles (width, height).
     #[error("image size {0}x{1}: the grid holds pixel rectangles in 16 bits, at most {max} pixels a side", max = u16::MAX)]
     ImageSize(u32, u32),
 }
@@ -53,8 +60,11 @@ pub struct ViewParticle {
     /// quantity q and the mass m (for the density field): single precision as the particles
     /// hold them (16 bytes a particle less than doubles), read as doubles.
     pub h32: f32,
+    /// See `h32`.
     pub v32: f32,
+    /// See `h32`.
     pub a32: f32,
+    /// See `h32`.
     pub m32: f32,
 }
 
@@ -94,6 +104,7 @@ impl ViewParticle {
 /// All particles in view space and the depth range their supports occupy.
 #[derive(Debug, Clone)]
 pub struct ViewParticles {
+    /// The particles in front of the camera, in view space.
     pub list: Vec<ViewParticle>,
     /// `[near, far]` in view depth, or `None` when nothing lies in front of the camera.
     pub range: Option<(f64, f64)>,
@@ -308,10 +319,13 @@ pub fn screen_extent(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -
 /// `o + z·d` (d has a z component of 1, so `z` is depth, not distance).
 #[derive(Debug, Clone, Copy)]
 pub struct Ray {
+    /// The ray's point at depth 0 (view space).
     pub o: [f64; 3],
+    /// Direction per unit of depth (z component 1).
     pub d: [f64; 3],
     /// |d|², and |d| (world length of a unit of depth along the ray).
     pub dd: f64,
+    /// See `dd`.
     pub dlen: f64,
 }
 
@@ -389,9 +403,13 @@ impl Ray {
 /// depth `t` (squared distance `r2` there).
 #[derive(Debug, Clone, Copy)]
 pub struct Passage {
+    /// View depth where the ray enters the support.
     pub z0: f64,
+    /// View depth where it leaves.
     pub z1: f64,
+    /// View depth of the closest approach to the centre.
     pub t: f64,
+    /// Squared distance to the centre there (world units²).
     pub r2: f64,
     /// |d|² of the ray.
     dd: f64,
@@ -415,7 +433,9 @@ pub struct Bundle {
     /// view the direction's x and y (the point at depth z is (x·z, y·z, z)); for a parallel
     /// view the origin's x and y (the point is (x, y, z)).
     pub x: [f64; 2],
+    /// See `x` (rows).
     pub y: [f64; 2],
+    /// Whether the view is a parallel projection.
     pub parallel: bool,
     /// Smallest and largest |d| of the bundle's rays (world length per unit of depth).
     pub dlen: [f64; 2],
@@ -522,14 +542,18 @@ pub struct Cell {
     /// References `start..end`; those in `unique_end..end` are also referenced by the cell
     /// at depth `z + 1` of the same bundle (the merge bit is set).
     pub start: u32,
+    /// See `start`.
     pub unique_end: u32,
+    /// See `start`.
     pub end: u32,
 }
 
 /// Grid resolution: bundle size D_xy in pixels and depth samples per cell D_z.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GridParams {
+    /// Bundle side D_xy, pixels (1..=64).
     pub bundle: u32,
+    /// Depth samples per cell D_z (a power of two, 1..=64).
     pub depth_samples: u32,
 }
 
@@ -619,14 +643,19 @@ fn sort_bundle_pairs(keys: &mut [u64], scratch: &mut SortScratch) {
 /// The sparse perspective grid of one view.
 #[derive(Debug, Clone)]
 pub struct PerspectiveGrid {
+    /// The view the grid was built for.
     pub frame: ViewFrame,
+    /// Bundle size and depth samples per cell.
     pub params: GridParams,
     /// Depth samples; `None` when nothing is in front of the camera (then there are no cells).
     pub depths: Option<SampleDepths>,
     /// Bundles across and down (M_x, M_y) and cells along depth (M_z).
     pub bundles_x: u32,
+    /// See `bundles_x`.
     pub bundles_y: u32,
+    /// See `bundles_x`.
     pub cells_z: u32,
+    /// The particles in view space; references index them.
     pub particles: Vec<ViewParticle>,
     /// Per particle, the pixels whose ray can enter its support, `[x0, x1) × [y0, y1)`
     /// ([`stored_rect`]; all zero where there are none). The ray caster cuts a bundle's

@@ -24,11 +24,14 @@ const SORT_BITS: u32 = 16;
 /// An axis-aligned box (world units); empty when `lo > hi` (the box of no particle).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
+    /// Lowest corner.
     pub lo: [f32; 3],
+    /// Highest corner.
     pub hi: [f32; 3],
 }
 
 impl Aabb {
+    /// The box of nothing (lo > hi): the identity of a union.
     pub const EMPTY: Aabb = Aabb {
         lo: [f32::INFINITY; 3],
         hi: [f32::NEG_INFINITY; 3],
@@ -115,10 +118,15 @@ fn up(x: f64) -> f32 {
 /// to the centre, and the squared distance there (world units²).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RayHit {
+    /// The particle's slot in the tree.
     pub slot: u32,
+    /// Ray parameter of entry.
     pub t_in: f64,
+    /// Ray parameter of exit.
     pub t_out: f64,
+    /// Ray parameter of the closest approach.
     pub closest: f64,
+    /// Squared distance from the centre at the closest approach.
     pub miss2: f64,
 }
 
@@ -229,6 +237,7 @@ impl ClusterBvh {
         self.order.len()
     }
 
+    /// Whether the tree holds no particle.
     pub fn is_empty(&self) -> bool {
         self.order.is_empty()
     }
@@ -255,6 +264,7 @@ impl ClusterBvh {
         self.order.len().div_ceil(self.leaf_size)
     }
 
+    /// Particles per leaf (cluster).
     pub fn leaf_size(&self) -> usize {
         self.leaf_size
     }

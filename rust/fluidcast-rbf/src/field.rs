@@ -47,6 +47,7 @@ impl Colouring {
     /// Every colouring, in the order of their codes on the GPU (`RBF_*` in WGSL).
     pub const ALL: [Colouring; 3] = [Colouring::Post, Colouring::Pre, Colouring::Density];
 
+    /// The name the CLI and the mapper take (post, pre, density).
     pub fn name(self) -> &'static str {
         match self {
             Colouring::Post => "post",
@@ -143,6 +144,7 @@ pub struct RbfOptions {
     /// Per-particle radius factor from the attribute (the paper's radius map); 0 hides a
     /// particle.
     pub radius_map: AttributeMap,
+    /// How attributes colour the field.
     pub colouring: Colouring,
     /// Particles per BVH leaf (1..=64).
     pub leaf_size: usize,
@@ -301,10 +303,12 @@ impl RbfField {
         self.bvh.refit(&radii)
     }
 
+    /// The field's tree of particle clusters.
     pub fn bvh(&self) -> &ClusterBvh {
         &self.bvh
     }
 
+    /// How the field's attributes are coloured.
     pub fn colouring(&self) -> Colouring {
         self.colouring
     }

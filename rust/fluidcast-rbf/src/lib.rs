@@ -14,6 +14,7 @@
 //! * a [`ClusterBvh`] over Hilbert-sorted clusters of particles answers the range queries
 //!   (which particles hold a point, which a ray crosses), built per time step and refit when
 //!   only radii change.
+#![warn(missing_docs)]
 
 mod bvh;
 mod field;
@@ -29,26 +30,50 @@ pub use hilbert::{hilbert_key, HILBERT_BITS};
 /// Why particles cannot become an RBF field.
 #[derive(Debug, thiserror::Error)]
 pub enum RbfError {
+    /// A leaf size out of 1..=64.
     #[error("BVH leaf size {0}: must be 1..={MAX_LEAF_SIZE} particles")]
     LeafSize(usize),
+    /// An array of another length than the particles.
     #[error("{got} {what} for {expected} particles")]
     Length {
+        /// The array.
         what: &'static str,
+        /// Its length.
         got: usize,
+        /// The particles.
         expected: usize,
     },
+    /// More particles than 32-bit slots index.
     #[error("{0} particles: the RBF field indexes at most 4,294,967,295")]
     TooMany(usize),
+    /// A particle centre with NaN or infinity.
     #[error("particle {index}: centre {centre:?} is not finite")]
-    Centre { index: usize, centre: [f32; 3] },
+    Centre {
+        /// The particle.
+        index: usize,
+        /// Its centre.
+        centre: [f32; 3],
+    },
+    /// A particle radius that is negative or not finite.
     #[error("particle {index}: radius {radius} is not a finite number >= 0")]
-    Radius { index: usize, radius: f32 },
+    Radius {
+        /// The particle.
+        index: usize,
+        /// Its radius.
+        radius: f32,
+    },
+    /// A global RBF radius that is not a finite number > 0.
     #[error("RBF radius {0}: must be finite and > 0 (world units)")]
     GlobalRadius(f64),
+    /// A particle whose attribute is NaN.
     #[error("particle {index}: its attribute is NaN")]
-    Attribute { index: usize },
+    Attribute {
+        /// The particle.
+        index: usize,
+    },
     #[error(
         "attribute map '{0}': expected pairs of position in [0, 1] and factor >= 0, e.g. 0,1,1,0.5"
     )]
+    /// A radius map that is not pairs of position and factor.
     Map(String),
 }
