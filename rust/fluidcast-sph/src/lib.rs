@@ -3,6 +3,7 @@
 //! Conventions: every kernel is parametrised by its **support radius** `H` (world units):
 //! `W(r, H) = 0` for `r >= H`, and `∫ W dV = 1` over 3D space. Classic smoothing lengths
 //! relate as `H = 2h` (cubic spline, Wendland), `H = 3h` (quintic M6) — see [`Kernel`].
+#![warn(missing_docs)]
 
 mod field;
 mod grid;

@@ -24,7 +24,9 @@ pub enum Component {
 /// `NAME:mag` or `NAME:K`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Quantity {
+    /// The point array.
     pub array: String,
+    /// Which of its components, or the magnitude.
     pub component: Component,
 }
 
@@ -71,7 +73,12 @@ impl std::fmt::Display for Quantity {
 #[derive(Debug, Clone, PartialEq)]
 pub enum RadiusSource {
     /// `H_j = scale · array_j` (e.g. `--radius-array h --radius-scale 2` for a smoothing length).
-    Array { name: String, scale: f64 },
+    Array {
+        /// The point array.
+        name: String,
+        /// The factor from its values to H.
+        scale: f64,
+    },
     /// The same H for all particles.
     Constant(f64),
     /// The file's field data `support_radius` (SPlisHSPlasH writes it), else the radius
@@ -83,7 +90,12 @@ pub enum RadiusSource {
 #[derive(Debug, Clone, PartialEq)]
 pub enum VolumeSource {
     /// `V_j = mass_j / density_j`.
-    MassDensity { mass: String, density: String },
+    MassDensity {
+        /// The mass array.
+        mass: String,
+        /// The density array.
+        density: String,
+    },
     /// `V_j = array_j`.
     Array(String),
     /// All particles get `spacing³` (spacing = mean nearest-neighbour distance): a uniform
@@ -98,7 +110,9 @@ pub enum VolumeSource {
 pub struct ParticleSpec {
     /// `None`: render the particle density / occupancy only (value 1 everywhere).
     pub quantity: Option<Quantity>,
+    /// Where the support radii come from.
     pub radius: RadiusSource,
+    /// Where the volumes come from.
     pub volume: VolumeSource,
     /// Mass array for the density field (`Σ m W`); `None`: auto (`mass`/`m`, else V·ρ).
     pub mass: Option<String>,
@@ -157,40 +171,73 @@ impl Default for ParticleSpec {
 /// A problem turning a data set into particles; names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum ParticleError {
+    /// A point array asked for that the file does not have.
     #[error("{file}: no point array '{name}' (available: {available})")]
     MissingArray {
+        /// The file.
         file: PathBuf,
+        /// The array asked for.
         name: String,
+        /// The point arrays the file has.
         available: String,
     },
+    /// A component index past the array's components.
     #[error("{file}: array '{name}' has {ncomp} components, component {index} does not exist")]
     BadComponent {
+        /// The file.
         file: PathBuf,
+        /// The array.
         name: String,
+        /// Its components.
         ncomp: usize,
+        /// The component asked for.
         index: usize,
     },
+    /// A data set without points.
     #[error("{file}: the data set has no points")]
-    NoPoints { file: PathBuf },
+    NoPoints {
+        /// The file.
+        file: PathBuf,
+    },
+    /// Every point has a NaN or infinite coordinate.
     #[error("{file}: all {count} points have NaN or infinite coordinates")]
-    NoFinitePoints { file: PathBuf, count: usize },
+    NoFinitePoints {
+        /// The file.
+        file: PathBuf,
+        /// Its points.
+        count: usize,
+    },
+    /// A support radius that is not a finite number > 0.
     #[error("{file}: support radius of particle {index} is {value} (must be finite and > 0)")]
     BadRadius {
+        /// The file.
         file: PathBuf,
+        /// The particle.
         index: usize,
+        /// Its radius.
         value: f64,
     },
+    /// A volume that is not a finite number > 0.
     #[error("{file}: volume of particle {index} is {value} ({from}; must be finite and > 0)")]
     BadVolume {
+        /// The file.
         file: PathBuf,
+        /// The particle.
         index: usize,
+        /// Its volume.
         value: f64,
         /// Where the volume came from, with the values at fault (e.g. `mass 0.0156 /
         /// density 0`: a particle whose density the code has not computed yet).
         from: String,
     },
+    /// Another problem with the data, in words.
     #[error("{file}: {message}")]
-    Other { file: PathBuf, message: String },
+    Other {
+        /// The file.
+        file: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// Reading an array of a file opened for reading one array at a time.
     #[error(transparent)]
     Read(#[from] ReadError),
@@ -222,6 +269,7 @@ pub struct Particles {
 pub trait ParticleSource {
     /// The file, for messages.
     fn path(&self) -> &Path;
+    /// Number of points.
     fn num_points(&self) -> usize;
     /// First value of a field-data array (e.g. `support_radius`).
     fn field_scalar(&self, name: &str) -> Option<f64>;

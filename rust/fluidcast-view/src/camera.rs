@@ -9,16 +9,22 @@ use serde::{Deserialize, Serialize};
 /// accepted too.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
+    /// The eye (world units).
     #[serde(alias = "Position")]
     pub position: [f64; 3],
+    /// The point looked at.
     #[serde(alias = "FocalPoint")]
     pub focal_point: [f64; 3],
+    /// The up direction (made orthogonal to the view direction when used).
     #[serde(alias = "ViewUp")]
     pub view_up: [f64; 3],
+    /// Vertical view angle, degrees (perspective; default 30).
     #[serde(alias = "ViewAngle", default = "default_angle")]
     pub view_angle: f64,
+    /// Parallel instead of perspective projection.
     #[serde(alias = "ParallelProjection", default)]
     pub parallel_projection: bool,
+    /// Half the view's height, world units (parallel projection; default 1).
     #[serde(alias = "ParallelScale", default = "one")]
     pub parallel_scale: f64,
 }
@@ -33,16 +39,22 @@ fn one() -> f64 {
 /// A camera that cannot be used.
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
+    /// The eye is at the focal point: no view direction.
     #[error("camera position equals the focal point")]
     Degenerate,
+    /// The up direction is along the view direction.
     #[error("camera view up is parallel to the view direction")]
     ViewUpParallel,
+    /// A view angle outside (0°, 180°).
     #[error("camera view angle {0}° is outside (0°, 180°)")]
     BadAngle(f64),
+    /// A parallel scale that is not > 0.
     #[error("camera parallel scale {0} must be > 0")]
     BadScale(f64),
+    /// A NaN or infinite value.
     #[error("camera has a non-finite value")]
     NonFinite,
+    /// A camera file that is not the JSON expected.
     #[error("camera file: {0}")]
     Json(#[from] serde_json::Error),
 }
@@ -197,11 +209,17 @@ impl Camera {
 /// (positive in front of the camera; this is vtkCamera's view space with z negated).
 #[derive(Debug, Clone, Copy)]
 pub struct ViewFrame {
+    /// The eye (world units).
     pub eye: DVec3,
+    /// Unit view direction (world space).
     pub forward: DVec3,
+    /// Unit right direction (world space).
     pub right: DVec3,
+    /// Unit up direction (world space).
     pub up: DVec3,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
     /// width / height.
     pub aspect: f64,

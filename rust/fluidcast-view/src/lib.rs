@@ -1,5 +1,6 @@
 //! Cameras in vtkCamera terms, transfer functions in ParaView preset terms, and lighting in
 //! vtkVolumeProperty's.
+#![warn(missing_docs)]
 
 mod camera;
 mod light;

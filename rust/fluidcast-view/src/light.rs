@@ -18,10 +18,15 @@ pub enum Light {
 /// as VTK's volume shaders do.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Lighting {
+    /// Ambient coefficient (>= 0).
     pub ambient: f64,
+    /// Diffuse coefficient (>= 0).
     pub diffuse: f64,
+    /// Specular coefficient (>= 0).
     pub specular: f64,
+    /// Specular exponent (>= 0).
     pub specular_power: f64,
+    /// Where the light comes from.
     pub light: Light,
 }
 
@@ -40,8 +45,10 @@ impl Default for Lighting {
 /// Why lighting parameters were refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum LightingError {
+    /// A coefficient (named) that is negative or not finite.
     #[error("{0} {1} must be finite and >= 0")]
     Coefficient(&'static str, f64),
+    /// A light direction that is zero or not finite.
     #[error("light direction {0:?} must be finite and not zero")]
     Direction([f64; 3]),
 }

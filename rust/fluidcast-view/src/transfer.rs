@@ -15,6 +15,7 @@ use crate::presets_data::{INFERNO, VIRIDIS};
 /// Distance", world units) and corrected per step: `α(Δs) = 1 − (1 − α)^(Δs / unit)`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TransferFunction {
+    /// The preset's or file's name.
     pub name: String,
     /// (x in [0,1], rgb) sorted by x.
     pub colors: Vec<(f64, [f64; 3])>,
@@ -29,10 +30,18 @@ pub struct TransferFunction {
 /// A transfer function that cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum TransferFunctionError {
+    /// A preset name that is neither built in nor a file (the name, the built-in ones).
     #[error("unknown transfer function preset '{0}' (built in: {1}; or give a ParaView preset .json file)")]
     UnknownPreset(String, String),
+    /// A preset file that cannot be used.
     #[error("{file}: {problem}")]
-    File { file: String, problem: String },
+    File {
+        /// The file.
+        file: String,
+        /// What is wrong with it.
+        problem: String,
+    },
+    /// A range that is not finite lo < hi.
     #[error("bad range {0},{1}: need finite lo < hi")]
     BadRange(f64, f64),
 }
@@ -279,12 +288,14 @@ fn closing_node<T>(pts: &[(f64, T)], starts: &[u32], t: f64) -> usize {
 /// (ParaView's colour maps have up to 1024). Built once per render.
 #[derive(Debug, Clone)]
 pub struct TfLookup<'a> {
+    /// The transfer function looked up.
     pub tf: &'a TransferFunction,
     colors: Vec<u32>,
     opacity: Vec<u32>,
 }
 
 impl<'a> TfLookup<'a> {
+    /// The lookup tables of `tf`.
     pub fn new(tf: &'a TransferFunction) -> TfLookup<'a> {
         TfLookup {
             tf,
