@@ -24,7 +24,7 @@
 //! file has besides (cells other than vertices, cell data) is counted in [`Cells`], so that
 //! a front end that hands the data on can refuse a mesh instead of dropping its cells
 //! ([`cells_of`]).
-
+#![warn(missing_docs)]
 // Input must not be able to make this crate panic or truncate a size.
 #![cfg_attr(
     not(test),
@@ -50,15 +50,25 @@ pub use pvd::{parse_collection, read_collection, Collection, CollectionEntry};
 /// represents every type exactly except 64-bit integers above 2^53.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScalarType {
+    /// 8-bit signed integers (`Int8`).
     I8,
+    /// 8-bit unsigned (`UInt8`).
     U8,
+    /// 16-bit signed (`Int16`).
     I16,
+    /// 16-bit unsigned (`UInt16`).
     U16,
+    /// 32-bit signed (`Int32`).
     I32,
+    /// 32-bit unsigned (`UInt32`).
     U32,
+    /// 64-bit signed (`Int64`).
     I64,
+    /// 64-bit unsigned (`UInt64`).
     U64,
+    /// Single precision (`Float32`).
     F32,
+    /// Double precision (`Float64`).
     F64,
 }
 
@@ -239,7 +249,9 @@ fn range_of(it: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
 /// The kind of VTK data set the particles came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DatasetKind {
+    /// A `.vtu`, `.pvtu` or legacy unstructured grid.
     UnstructuredGrid,
+    /// A `.vtp`, `.pvtp` or legacy poly data.
     PolyData,
 }
 
@@ -249,6 +261,7 @@ pub enum DatasetKind {
 pub struct Dataset {
     /// The file this came from (used in every error message about it).
     pub path: PathBuf,
+    /// The file read.
     pub kind: DatasetKind,
     /// Point coordinates; all pieces of the file concatenated.
     pub points: Vec<[f64; 3]>,
@@ -361,7 +374,9 @@ pub fn cells_of(path: impl AsRef<Path>) -> Result<Cells, ReadError> {
 /// decoded: appended `.vtu`/`.vtp` files (what SPH codes and ParaView write) are read by
 /// byte range, each array when asked for; other files are read at once (the arrays given).
 pub enum LazyDataset {
+    /// An appended XML file, read array by array by byte range.
     Xml(xml::LazyXml),
+    /// Any other file, read at once.
     Read(Dataset),
 }
 
@@ -377,6 +392,7 @@ pub fn open_lazy(path: impl AsRef<Path>, arrays: &Arrays) -> Result<LazyDataset,
 }
 
 impl LazyDataset {
+    /// The file.
     pub fn path(&self) -> &Path {
         match self {
             LazyDataset::Xml(x) => x.path(),
@@ -384,6 +400,7 @@ impl LazyDataset {
         }
     }
 
+    /// Number of points.
     pub fn num_points(&self) -> usize {
         match self {
             LazyDataset::Xml(x) => x.num_points(),
@@ -391,6 +408,7 @@ impl LazyDataset {
         }
     }
 
+    /// The field data (read at open: it is small).
     pub fn field_data(&self) -> &[DataArray] {
         match self {
             LazyDataset::Xml(x) => x.field_data(),

@@ -31,8 +31,11 @@ fn owned_ghost_value(v: f64) -> bool {
 /// piece files (resolved against the summary's folder), in order.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParallelFile {
+    /// The pieces' data set kind.
     pub kind: DatasetKind,
+    /// The point arrays the summary declares.
     pub point_arrays: Vec<String>,
+    /// The piece files, resolved against the summary's folder.
     pub pieces: Vec<PathBuf>,
 }
 

@@ -19,6 +19,7 @@ pub struct CollectionEntry {
 /// A ParaView `.pvd` collection: a time series of particle files.
 #[derive(Debug, Clone)]
 pub struct Collection {
+    /// The `.pvd` file.
     pub path: PathBuf,
     /// Entries sorted by time step (ParaView's order), stable for equal times.
     pub entries: Vec<CollectionEntry>,

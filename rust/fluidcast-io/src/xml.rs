@@ -907,10 +907,12 @@ impl LazyXml {
         Ok(lazy)
     }
 
+    /// The file.
     pub fn path(&self) -> &Path {
         &self.path
     }
 
+    /// Unstructured grid or poly data.
     pub fn kind(&self) -> DatasetKind {
         self.kind
     }
@@ -931,6 +933,7 @@ impl LazyXml {
         self.pieces.iter().sum()
     }
 
+    /// The field data (read at open).
     pub fn field_data(&self) -> &[DataArray] {
         &self.field_data
     }
