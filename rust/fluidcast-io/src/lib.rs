@@ -261,7 +261,7 @@ pub enum DatasetKind {
 pub struct Dataset {
     /// The file this came from (used in every error message about it).
     pub path: PathBuf,
-    /// The file read.
+    /// Unstructured grid or poly data.
     pub kind: DatasetKind,
     /// Point coordinates; all pieces of the file concatenated.
     pub points: Vec<[f64; 3]>,

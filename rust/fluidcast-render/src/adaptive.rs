@@ -20,9 +20,13 @@ pub const SURFACE_THRESHOLD: f64 = 0.75;
 /// `superpixel`, per pixel from its bundle), stage timings, and the grid and plan it used.
 #[derive(Debug, Clone)]
 pub struct AdaptiveRender {
+    /// The image and its plan AOVs.
     pub image: Image,
+    /// Timings and counts.
     pub stats: RenderStats,
+    /// The sparse perspective grid of the view.
     pub grid: PerspectiveGrid,
+    /// The sampling plan cast.
     pub plan: SamplingPlan,
 }
 
@@ -52,8 +56,11 @@ pub fn plan_surface<'a>(
 /// ([`render_adaptive`] on the CPU, `fluidcast-gpu` on the GPU) consumes it.
 #[derive(Debug, Clone)]
 pub struct AdaptivePlan {
+    /// The sparse perspective grid of the view.
     pub grid: PerspectiveGrid,
+    /// The sampling plan.
     pub plan: SamplingPlan,
+    /// Timings and counts of the grid and plan stages.
     pub stats: RenderStats,
 }
 

@@ -92,10 +92,15 @@ pub fn refined_bundles(summaries: &[fluidcast_plan::BundleSummary]) -> Vec<bool>
 /// [`crate::RenderStats::stages`] lists them.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Refined {
+    /// Pixels of the first pass's lattice.
     pub lattice: u64,
+    /// Pixels cast in the second pass.
     pub cast: u64,
+    /// Interpolated pixels cast again where their neighbours disagreed.
     pub rechecked: u64,
+    /// Pixels interpolated.
     pub interpolated: u64,
+    /// Milliseconds of each pass (see above).
     pub stages: Vec<(&'static str, f64)>,
 }
 

@@ -16,6 +16,7 @@
 //!   levels, super-pixels, merging) and bundle-coherent ray casting (Alg. 2) that walks each
 //!   bundle's cells front to back and stops once all its rays are opaque. With no error
 //!   tolerance it samples exactly the reference's positions.
+#![warn(missing_docs)]
 
 mod adaptive;
 pub mod bluenoise;
@@ -73,8 +74,11 @@ pub const IMAGE_BYTES_PER_PIXEL: u64 = 64;
 pub struct RenderParams {
     /// Image size in pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// The smoothing kernel.
     pub kernel: Kernel,
+    /// The field reconstructed (CSPH, SPH sum, density).
     pub field: FieldKind,
     /// Multiplies the number of depth samples (1 = depth step equals the pixel footprint).
     pub sampling_scale: f64,
@@ -180,42 +184,64 @@ impl Default for RenderParams {
 /// Why a rendering could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
+    /// The camera cannot see.
     #[error("camera: {0}")]
     Camera(#[from] CameraError),
+    /// An image side out of 1..=MAX_SIDE, or too many pixels.
     #[error("image size {0}x{1} is out of range (each side 1..={MAX_SIDE}, at most {MAX_PIXELS} pixels)")]
     ImageSize(u32, u32),
+    /// The perspective grid could not be built.
     #[error(transparent)]
     Grid(#[from] GridError),
+    /// The sampling plan could not be made.
     #[error(transparent)]
     Plan(#[from] PlanError),
+    /// A minimum transmittance outside [0, 1).
     #[error("minimum transmittance {0} must be in [0, 1)")]
     MinTransmittance(f64),
+    /// A depth limit of another size than the image (which, values, width, height).
     #[error("{0} has {1} values for a {2}x{3} image")]
     DepthLimitSize(&'static str, usize, u32, u32),
+    /// Support depths that are not a finite range.
     #[error("support depths {0}..{1} are not a finite range")]
     SupportDepths(f64, f64),
+    /// A crop box that is not finite, or min > max.
     #[error("crop box {0:?}..{1:?} is not a finite box (each min <= max)")]
     CropBox([f64; 3], [f64; 3]),
+    /// A depth limit holding NaN or a negative depth (which).
     #[error("{0} holds NaN or a negative depth")]
     DepthLimitValue(&'static str),
+    /// A perspective grid cell out of range, pixels.
     #[error("perspective grid cell {0} pixels: must be 1..={max}", max = perspective::MAX_CELL)]
     GridCell(u32),
+    /// A renderer (named) asked for a shaded volume it does not draw.
     #[error("{0} does not draw a shaded volume yet; render it with the reference renderer (CLI: --mode reference, which --shade-volume chooses by default)")]
     VolumeLighting(&'static str),
+    /// Iso-surfaces that cannot be drawn.
     #[error("iso-surfaces: {0}")]
     Surface(#[from] SurfaceError),
     /// A particle whose kernel weight single precision cannot sum ([`check_weights`]).
     #[error("particle {index}: its kernel weight {what} x W(0) = {weight:e} is not a number single precision can sum (the grid renderers sum in it): rescale the data (e.g. lengths in other units)")]
     Weight {
+        /// The particle.
         index: usize,
+        /// What its weight is made of.
         what: &'static str,
+        /// The weight.
         weight: f64,
     },
     /// Rendering in screen tiles within a memory budget ([`tile_particles_within`]).
     #[error("a memory limit leaving {} for rendering is too small: it needs at least {} (the image, 9 bytes a particle, and a tile of 1 MiB)", fluidcast_mem::Bytes(*.budget), fluidcast_mem::Bytes(*.needed))]
-    MemoryBudget { budget: u64, needed: u64 },
+    MemoryBudget {
+        /// The bytes the limit leaves for rendering.
+        budget: u64,
+        /// The bytes one render in tiles needs at least.
+        needed: u64,
+    },
+    /// The RBF field could not be built.
     #[error("RBF field: {0}")]
     RbfField(#[from] fluidcast_rbf::RbfError),
+    /// The RBF march refused its parameters, in words.
     #[error("RBF renderer: {0}")]
     Rbf(String),
 }
@@ -257,7 +283,9 @@ pub fn check_weights(particles: &Particles, kernel: Kernel) -> Result<(), Render
 /// here, `fluidcast-gpu`, and `fluidcast-backend`, which chooses between them).
 #[derive(Debug, Clone)]
 pub struct Rendered {
+    /// Premultiplied RGBA and depth per pixel.
     pub image: fluidcast_image::Image,
+    /// Timings and counts.
     pub stats: RenderStats,
 }
 
@@ -266,6 +294,7 @@ pub struct Rendered {
 pub struct RenderStats {
     /// (stage, milliseconds) in order; `total` covers the renderer's own stages.
     pub stages: Vec<(&'static str, f64)>,
+    /// Particles given.
     pub particles: usize,
     /// Particles whose support intersects the view frustum.
     pub particles_visible: usize,
@@ -273,14 +302,21 @@ pub struct RenderStats {
     pub samples: u64,
     /// Depth samples per ray (N) and the view-depth range [near, far].
     pub depth_samples: usize,
+    /// See `depth_samples`.
     pub near: f64,
+    /// See `depth_samples`.
     pub far: f64,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
     /// Grid renderer only: ray bundles, non-empty cells, particle–cell pairs and the plan.
     pub bundles: u64,
+    /// See `bundles`.
     pub cells: u64,
+    /// See `bundles`.
     pub pairs: u64,
+    /// See `bundles`.
     pub plan: Option<PlanStats>,
     /// GPU backend only: bytes of GPU buffers held (kept and reused across frames).
     pub gpu_memory_bytes: u64,

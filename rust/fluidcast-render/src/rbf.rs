@@ -90,7 +90,9 @@ impl RbfRenderParams {
 /// The constants of [`white_offset`]'s hash: the seed's offset, the multiplier of each
 /// number hashed in, and "lowbias32"'s two multipliers (the GPU's copy is written from these).
 pub const HASH_SEED: u32 = 0x9e37_79b9;
+/// See [`HASH_SEED`].
 pub const HASH_IN: u32 = 0x85eb_ca6b;
+/// See [`HASH_SEED`].
 pub const HASH_MUL: [u32; 2] = [0x7feb_352d, 0x846c_a68b];
 
 /// A random fraction in [0, 1) for pixel (i, j) in pass `pass` (a 32-bit integer hash,
@@ -178,6 +180,7 @@ struct Scratch {
 /// Seeds (xor-ed into the user's) of the random streams beside the march's offsets: the
 /// shade point's choice and the shadow rays' offsets.
 pub const PICK_STREAM: u32 = 0x5bd1_e995;
+/// See [`PICK_STREAM`].
 pub const SHADOW_STREAM: u32 = 0x27d4_eb2f;
 
 /// A shadow ray stops once its optical depth passes this (transmittance below 2e-9).

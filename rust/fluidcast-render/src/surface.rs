@@ -47,6 +47,7 @@ impl IsoField {
 /// Iso-surfaces to draw, and how: what [`RenderParams::surfaces`] holds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Surfaces {
+    /// The field whose iso-surfaces are drawn.
     pub field: IsoField,
     /// The iso values (in the field's units), at least one.
     pub values: Vec<f64>,
@@ -55,6 +56,7 @@ pub struct Surfaces {
     /// A solid linear RGB colour (0..1); `None`: the transfer function's colour of the
     /// rendered field at the surface point (the field as [`RenderParams::field`] says).
     pub colour: Option<[f64; 3]>,
+    /// How the surfaces are lit.
     pub lighting: Lighting,
     /// Also composite the emission–absorption volume of the rendered field, in depth order
     /// with the surfaces (a step that a surface cuts is split there); `false`: surfaces only.
@@ -77,20 +79,28 @@ impl Default for Surfaces {
 /// Why iso-surface parameters were refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SurfaceError {
+    /// No iso value.
     #[error("no iso value given")]
     NoValues,
+    /// An iso value that is NaN or infinite.
     #[error("iso value {0} is not finite")]
     Value(f64),
+    /// A surface opacity outside (0, 1].
     #[error("surface opacity {0} must be in (0, 1]")]
     Opacity(f64),
+    /// A surface colour outside 0..1.
     #[error("surface colour {0:?} must be three numbers in 0..1")]
     Colour([f64; 3]),
+    /// Bad lighting coefficients or direction.
     #[error(transparent)]
     Lighting(#[from] LightingError),
+    /// An iso attribute of another length than the particles (values, particles).
     #[error("the iso attribute has {0} values for {1} particles")]
     AttributeLength(usize, usize),
+    /// A renderer (named) that draws no iso-surfaces yet.
     #[error("{0} does not draw iso-surfaces yet; render them with the reference renderer (CLI: --mode reference, which --iso chooses by default)")]
     Unsupported(&'static str),
+    /// A renderer (named) that draws opaque surfaces over the volume only.
     #[error("{0} draws opaque surfaces over the volume only (the volume stops at the first surface); translucent surfaces with the volume render with the reference renderer (CLI: --mode reference)")]
     Translucent(&'static str),
 }
