@@ -274,6 +274,7 @@ vtkFluidCastVolumeMapper::vtkFluidCastVolumeMapper()
   this->SetField("csph");
   this->SetRBFClassification("post");
   this->SetMode("auto");
+  this->SetRBFNoise("blue");
 }
 
 //------------------------------------------------------------------------------
@@ -286,6 +287,7 @@ vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
   this->SetRBFClassification(nullptr);
   this->SetIsoSurfaceField(nullptr);
   this->SetMode(nullptr);
+  this->SetRBFNoise(nullptr);
 }
 
 //------------------------------------------------------------------------------
@@ -310,6 +312,12 @@ std::string NameAt(const rust::Vec<rust::String>& names, int index)
 std::string vtkFluidCastVolumeMapper::GetModeName(int index)
 {
   return NameAt(fluidcast::mode_names(), index);
+}
+
+//------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::GetRBFNoiseName(int index)
+{
+  return NameAt(fluidcast::rbf_noise_names(), index);
 }
 
 //------------------------------------------------------------------------------
@@ -542,6 +550,17 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.surface_cells = this->SurfaceCells != 0;
     s.interpolate = this->Interpolation != 0;
     s.tiles = static_cast<uint32_t>(this->Tiles);
+    s.relax = this->Relax;
+    s.strict = this->Strict != 0;
+    s.bundle = static_cast<uint32_t>(this->BundleSize);
+    s.depth_samples = static_cast<uint32_t>(this->DepthSamples);
+    s.sampling_scale = this->SamplingScale;
+    s.occlusion_culling = this->OcclusionCulling != 0;
+    s.rbf_seed = static_cast<uint32_t>(this->RBFSeed);
+    s.rbf_leaf_size = static_cast<uint32_t>(this->RBFLeafSize);
+    s.rbf_step = this->RBFStep;
+    s.shadow_samples = static_cast<uint32_t>(this->ShadowSamples);
+    s.rbf_noise = this->RBFNoise ? this->RBFNoise : "blue";
     r.configure(s);
     fluidcast::RenderInfo info = r.prepare();
     this->LastParticleCount = static_cast<vtkIdType>(info.particles);
@@ -877,6 +896,17 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "SurfaceCells: " << this->SurfaceCells << "\n";
   os << indent << "Interpolation: " << this->Interpolation << "\n";
   os << indent << "Tiles: " << this->Tiles << "\n";
+  os << indent << "Relax: " << this->Relax << "\n";
+  os << indent << "Strict: " << this->Strict << "\n";
+  os << indent << "BundleSize: " << this->BundleSize << "\n";
+  os << indent << "DepthSamples: " << this->DepthSamples << "\n";
+  os << indent << "SamplingScale: " << this->SamplingScale << "\n";
+  os << indent << "OcclusionCulling: " << this->OcclusionCulling << "\n";
+  os << indent << "RBFSeed: " << this->RBFSeed << "\n";
+  os << indent << "RBFLeafSize: " << this->RBFLeafSize << "\n";
+  os << indent << "RBFStep: " << this->RBFStep << "\n";
+  os << indent << "ShadowSamples: " << this->ShadowSamples << "\n";
+  os << indent << "RBFNoise: " << (this->RBFNoise ? this->RBFNoise : "blue") << "\n";
   os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";

@@ -102,6 +102,8 @@ public:
    */
   static std::string GetFieldName(int index);
   static std::string GetRBFClassificationName(int index);
+  /** RBFNoise's names by index (ParaView's FluidCastRBFNoise: 0 blue, 1 white). */
+  static std::string GetRBFNoiseName(int index);
   ///@}
 
   ///@{
@@ -258,6 +260,49 @@ public:
   vtkSetClampMacro(Tiles, int, 0, 65536);
   vtkGetMacro(Tiles, int);
   vtkGetMacro(LastTiles, vtkIdType);
+  ///@}
+
+  ///@{
+  /**
+   * The rest of the plan, as the CLI's options of the same names (see each): the error
+   * analysis (Relax, Strict), the grid (BundleSize, DepthSamples, SamplingScale), the
+   * perspective grid's OcclusionCulling, and the RBF march (RBFNoise "blue" or "white",
+   * RBFSeed, RBFLeafSize, RBFStep, ShadowSamples).
+   * Relax: The relaxation E_relax in [0, 1] (1, the default: ignore the lateral variation inside cells when estimating errors; 0: the strict bound). fluidcast render --relax.
+   * Strict: The strict error bound: no relaxation, super-pixels or interpolation, so no pixel differs from full rate by more than ErrorTolerance. fluidcast render --strict.
+   * BundleSize: Ray bundle side D_xy in pixels (1..64; 8 by default; the GPU takes at most 8). fluidcast render --bundle.
+   * DepthSamples: Depth samples per cell D_z, a power of two in 1..64 (16 by default). fluidcast render --depth-samples.
+   * SamplingScale: Depth samples per ray relative to the default (> 0; 1 by default). fluidcast render --sampling-scale.
+   * OcclusionCulling: Perspective grid: skip the tiles of columns that no still-marching pixel reads (on by default; off draws the same image, slower). fluidcast render --no-occlusion-culling turns it off.
+   * RBFSeed: RBF: seed of the per-pixel jitter. fluidcast render --seed.
+   * RBFLeafSize: RBF: particles per BVH leaf (1..64). fluidcast render --leaf-size.
+   * RBFStep: RBF: the step along each ray (world units); <= 0 (default): half the median particle's standard deviation over SamplingScale. fluidcast render --rbf-step.
+   * ShadowSamples: RBF shadows: shadow rays per pixel and pass (1..1024). fluidcast render --shadow-samples.
+   */
+  vtkSetClampMacro(Relax, double, 0.0, 1.0);
+  vtkGetMacro(Relax, double);
+  vtkSetMacro(Strict, vtkTypeBool);
+  vtkGetMacro(Strict, vtkTypeBool);
+  vtkBooleanMacro(Strict, vtkTypeBool);
+  vtkSetClampMacro(BundleSize, int, 1, 64);
+  vtkGetMacro(BundleSize, int);
+  vtkSetClampMacro(DepthSamples, int, 1, 64);
+  vtkGetMacro(DepthSamples, int);
+  vtkSetClampMacro(SamplingScale, double, 1e-6, 1e6);
+  vtkGetMacro(SamplingScale, double);
+  vtkSetMacro(OcclusionCulling, vtkTypeBool);
+  vtkGetMacro(OcclusionCulling, vtkTypeBool);
+  vtkBooleanMacro(OcclusionCulling, vtkTypeBool);
+  vtkSetClampMacro(RBFSeed, int, 0, 2147483647);
+  vtkGetMacro(RBFSeed, int);
+  vtkSetClampMacro(RBFLeafSize, int, 1, 64);
+  vtkGetMacro(RBFLeafSize, int);
+  vtkSetMacro(RBFStep, double);
+  vtkGetMacro(RBFStep, double);
+  vtkSetClampMacro(ShadowSamples, int, 1, 1024);
+  vtkGetMacro(ShadowSamples, int);
+  vtkSetStringMacro(RBFNoise);
+  vtkGetStringMacro(RBFNoise);
   ///@}
 
   ///@{
@@ -431,6 +476,17 @@ protected:
   vtkTypeBool Interpolation = 1;
   int Tiles = 0;
   vtkIdType LastTiles = 0;
+  double Relax = 1.0;
+  vtkTypeBool Strict = 0;
+  int BundleSize = 8;
+  int DepthSamples = 16;
+  double SamplingScale = 1.0;
+  vtkTypeBool OcclusionCulling = 1;
+  int RBFSeed = 0;
+  int RBFLeafSize = 8;
+  double RBFStep = 0.0;
+  int ShadowSamples = 1;
+  char* RBFNoise = nullptr;
   int VectorMode = -1;
   int VectorComponent = 0;
   int BlendMode = vtkVolumeMapper::COMPOSITE_BLEND;

@@ -415,6 +415,63 @@ void vtkFluidCastRepresentation::SetTiles(int tiles)
   this->Mapper->SetTiles(tiles);
 }
 
+void vtkFluidCastRepresentation::SetRelax(double v)
+{
+  this->Mapper->SetRelax(v);
+}
+
+void vtkFluidCastRepresentation::SetStrict(int v)
+{
+  this->Mapper->SetStrict(v);
+}
+
+void vtkFluidCastRepresentation::SetBundleSize(int v)
+{
+  this->Mapper->SetBundleSize(v);
+}
+
+void vtkFluidCastRepresentation::SetDepthSamples(int v)
+{
+  this->Mapper->SetDepthSamples(v);
+}
+
+void vtkFluidCastRepresentation::SetSamplingScale(double v)
+{
+  this->Mapper->SetSamplingScale(v);
+}
+
+void vtkFluidCastRepresentation::SetOcclusionCulling(int v)
+{
+  this->Mapper->SetOcclusionCulling(v);
+}
+
+void vtkFluidCastRepresentation::SetRBFSeed(int v)
+{
+  this->Mapper->SetRBFSeed(v);
+}
+
+void vtkFluidCastRepresentation::SetRBFLeafSize(int v)
+{
+  this->Mapper->SetRBFLeafSize(v);
+}
+
+void vtkFluidCastRepresentation::SetRBFStep(double v)
+{
+  this->Mapper->SetRBFStep(v);
+}
+
+void vtkFluidCastRepresentation::SetShadowSamples(int v)
+{
+  this->Mapper->SetShadowSamples(v);
+}
+
+void vtkFluidCastRepresentation::SetRBFNoise(int noise)
+{
+  std::string name = vtkFluidCastVolumeMapper::GetRBFNoiseName(noise);
+  this->Mapper->SetRBFNoise(
+    name.empty() ? vtkFluidCastVolumeMapper::GetRBFNoiseName(0).c_str() : name.c_str());
+}
+
 void vtkFluidCastRepresentation::SetAdapter(const char* name)
 {
   this->Mapper->SetAdapter(name && name[0] ? name : nullptr);

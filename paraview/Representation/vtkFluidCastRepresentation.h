@@ -72,6 +72,18 @@ public:
   void SetSurfaceCells(int on);
   void SetInterpolation(int on);
   void SetTiles(int tiles);
+  /** The mapper's remaining plan settings (see vtkFluidCastVolumeMapper); RBFNoise 0 blue, 1 white. */
+  void SetRelax(double v);
+  void SetStrict(int v);
+  void SetBundleSize(int v);
+  void SetDepthSamples(int v);
+  void SetSamplingScale(double v);
+  void SetOcclusionCulling(int v);
+  void SetRBFSeed(int v);
+  void SetRBFLeafSize(int v);
+  void SetRBFStep(double v);
+  void SetShadowSamples(int v);
+  void SetRBFNoise(int noise);
   ///@}
 
   ///@{

@@ -5,9 +5,10 @@ VTK window and ParaView's representation draw the same image of one shared frame
 
 The frame: DATA's ARRAY (magnitude) at 200x150 on white, a fixed colour map and opacity
 function, error tolerance 0.1 (coarse enough that the plan's switches show). Per option
-(mode, field, tolerance, probe, backend, level of detail, tiles, iso-surfaces, RBF post and
-pre, shadows, samples per pixel) the three images must agree within 2/255 per channel, and
-the option must move the image by more than that from the image it is compared against
+(mode, field, tolerance, probe, relaxation, strict bound, bundle, depth samples, sampling
+scale, backend, level of detail, tiles, iso-surfaces, RBF post and pre, noise, seed, step,
+shadows, shadow samples, samples per pixel) the three images must agree within 2/255 per
+channel, and the option must move the image by more than that from the image it is compared against
 (the base frame; for RBF pre and shadows the RBF post image; for spp the shadows'), so
 that a front-end that drops the option fails. Options that keep the image by design check
 what they must change instead: the GPU backend the device the frame rendered on, tiles the
@@ -229,6 +230,28 @@ OPTIONS = [
     # One lit pass is noisy; four average it (the shadows' own image is the one to move from).
     ("spp", ["--field", "rbf", "--shadows", "--light", "0,1,0", "--spp", "4"],
      lambda m: rbf_vtk(m, spp=4, shadows=True), rbf_pv(spp=4, shadows=True), "shadows"),
+    ("relax_0", ["--relax", "0"], lambda m: m.SetRelax(0.0), {"FluidCastRelax": 0.0}, "base"),
+    ("strict", ["--strict"], lambda m: m.SetStrict(1), {"FluidCastStrict": 1}, "base"),
+    ("bundle_4", ["--bundle", "4"], lambda m: m.SetBundleSize(4), {"FluidCastBundleSize": 4},
+     "base"),
+    ("depth_samples_4", ["--depth-samples", "4"], lambda m: m.SetDepthSamples(4),
+     {"FluidCastDepthSamples": 4}, "base"),
+    ("sampling_scale", ["--sampling-scale", "0.25"], lambda m: m.SetSamplingScale(0.25),
+     {"FluidCastSamplingScale": 0.25}, "base"),
+    # Unlit, one pass of either noise is near the converged field; lit, the noise shows.
+    ("rbf_white_noise", ["--field", "rbf", "--shadows", "--light", "0,1,0", "--noise", "white"],
+     lambda m: (rbf_vtk(m, shadows=True), m.SetRBFNoise("white")),
+     {**rbf_pv(shadows=True), "FluidCastRBFNoise": "White"}, "shadows"),
+    ("rbf_seed", ["--field", "rbf", "--shadows", "--light", "0,1,0", "--seed", "7"],
+     lambda m: (rbf_vtk(m, shadows=True), m.SetRBFSeed(7)),
+     {**rbf_pv(shadows=True), "FluidCastRBFSeed": 7}, "shadows"),
+    ("rbf_step", ["--field", "rbf", "--rbf-step", "0.05"],
+     lambda m: (rbf_vtk(m), m.SetRBFStep(0.05)), {**rbf_pv(), "FluidCastRBFStep": 0.05},
+     "rbf_post"),
+    ("shadow_samples", ["--field", "rbf", "--shadows", "--light", "0,1,0",
+                        "--shadow-samples", "4"],
+     lambda m: (rbf_vtk(m, shadows=True), m.SetShadowSamples(4)),
+     {**rbf_pv(shadows=True), "FluidCastShadowSamples": 4}, "shadows"),
     ("backend_gpu", [], lambda m: m.SetBackend(2), {"FluidCastBackend": "GPU"}, "device"),
     ("tiles", ["--tiles", "4"], lambda m: m.SetTiles(4), {"FluidCastTiles": 4}, "tiles"),
 ]
@@ -249,6 +272,15 @@ def reset():
     m.SetField("csph")
     m.SetBackend(1)
     m.SetTiles(0)
+    m.SetRelax(1.0)
+    m.SetStrict(0)
+    m.SetBundleSize(8)
+    m.SetDepthSamples(16)
+    m.SetSamplingScale(1.0)
+    m.SetRBFNoise("blue")
+    m.SetRBFSeed(0)
+    m.SetRBFStep(0.0)
+    m.SetShadowSamples(1)
     display.FluidCastMode = "Auto"
     display.FluidCastGridCell = 1
     display.FluidCastField = "CSPH"
@@ -261,6 +293,15 @@ def reset():
     display.FluidCastField = "CSPH"
     display.FluidCastBackend = "CPU"
     display.FluidCastTiles = 0
+    display.FluidCastRelax = 1.0
+    display.FluidCastStrict = 0
+    display.FluidCastBundleSize = 8
+    display.FluidCastDepthSamples = 16
+    display.FluidCastSamplingScale = 1.0
+    display.FluidCastRBFNoise = "Blue"
+    display.FluidCastRBFSeed = 0
+    display.FluidCastRBFStep = 0.0
+    display.FluidCastShadowSamples = 1
 
 
 def worst(a, b):

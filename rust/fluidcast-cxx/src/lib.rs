@@ -128,6 +128,29 @@ mod ffi {
         /// Render each view in at least this many screen tiles (the CLI's `--tiles`; 0: as
         /// the memory limit needs).
         tiles: u32,
+        /// The relaxation E_relax in [0, 1] (the CLI's `--relax`; 1: the default).
+        relax: f64,
+        /// The strict bound: no relaxation, super-pixels or interpolation (`--strict`).
+        strict: bool,
+        /// Ray bundle side D_xy, pixels (`--bundle`, 1..=64; 8: the default).
+        bundle: u32,
+        /// Depth samples per cell D_z (`--depth-samples`, a power of two in 1..=64; 16).
+        depth_samples: u32,
+        /// Depth samples per ray relative to the default (`--sampling-scale`, > 0; 1).
+        sampling_scale: f64,
+        /// Perspective grid: skip tiles no marching pixel reads (off:
+        /// `--no-occlusion-culling`, the same image, slower).
+        occlusion_culling: bool,
+        /// RBF: the jitter's noise, "blue" (default) or "white" (`--noise`).
+        rbf_noise: String,
+        /// RBF: seed of the per-pixel jitter (`--seed`).
+        rbf_seed: u32,
+        /// RBF: particles per BVH leaf (`--leaf-size`, 1..=64).
+        rbf_leaf_size: u32,
+        /// RBF: the step along each ray, world units; <= 0: automatic (`--rbf-step`).
+        rbf_step: f64,
+        /// RBF shadows: shadow rays per pixel and pass (`--shadow-samples`, 1..=1024).
+        shadow_samples: u32,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -232,6 +255,8 @@ mod ffi {
         fn rbf_classification_names() -> Vec<String>;
         /// `Settings::mode`'s names in the order of ParaView's FluidCastMode enumeration.
         fn mode_names() -> Vec<String>;
+        /// `Settings::rbf_noise`'s names in the order of ParaView's FluidCastRBFNoise.
+        fn rbf_noise_names() -> Vec<String>;
         /// The kernel names `Settings::kernel` takes, in the order of ParaView's
         /// `FluidCastKernel` (cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian).
         fn kernel_names() -> Vec<String>;
@@ -331,6 +356,10 @@ struct OpenBackend {
 
 fn kernel_names() -> Vec<String> {
     Kernel::ALL.iter().map(|k| k.name().to_string()).collect()
+}
+
+fn rbf_noise_names() -> Vec<String> {
+    plan::NOISE_NAMES.map(str::to_string).to_vec()
 }
 
 fn mode_names() -> Vec<String> {
@@ -912,6 +941,17 @@ mod tests {
             surface_cells: true,
             interpolate: true,
             tiles: 0,
+            relax: 1.0,
+            strict: false,
+            bundle: 8,
+            depth_samples: 16,
+            sampling_scale: 1.0,
+            occlusion_culling: true,
+            rbf_noise: "blue".into(),
+            rbf_seed: 0,
+            rbf_leaf_size: fluidcast_backend::DEFAULT_LEAF_SIZE as u32,
+            rbf_step: 0.0,
+            shadow_samples: 1,
         }
     }
 

@@ -4,8 +4,9 @@
 use std::sync::Arc;
 
 use fluidcast_backend::{
-    AttributeMap, BackendError, Colouring, March, Marched, Mode, PlanItem, PlanParams, RbfOptions,
-    RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles, MAX_CELL,
+    AttributeMap, BackendError, Colouring, GridParams, March, Marched, Mode, Noise, PlanItem,
+    PlanParams, RbfOptions, RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles, MAX_CELL,
+    MAX_LEAF_SIZE,
 };
 use fluidcast_sph::FieldKind;
 use fluidcast_view::Camera;
@@ -35,6 +36,21 @@ pub(crate) fn is_rbf(field: &str) -> bool {
     field.eq_ignore_ascii_case(RBF)
 }
 
+/// `Settings::rbf_noise`'s names in the order of ParaView's `FluidCastRBFNoise`.
+pub(crate) const NOISE_NAMES: [&str; 2] = ["blue", "white"];
+
+/// The jitter's noise `name` names ("" or "blue": blue noise; "white").
+fn noise(name: &str) -> Result<Noise, String> {
+    let n = name.trim().to_ascii_lowercase();
+    let [blue, white] = NOISE_NAMES;
+    match n.as_str() {
+        "" => Ok(Noise::Blue),
+        n if n == blue => Ok(Noise::Blue),
+        n if n == white => Ok(Noise::White),
+        other => Err(format!("RBF noise '{other}': expected {blue} or {white}")),
+    }
+}
+
 /// The most screen tiles a view may be split into (the CLI's `--tiles` limit).
 const MAX_TILES: u32 = 65536;
 
@@ -50,6 +66,34 @@ pub(crate) fn check_sampling(s: &ffi::Settings) -> Result<(), String> {
     if s.tiles > MAX_TILES {
         return Err(format!("tiles {}: at most {MAX_TILES}", s.tiles));
     }
+    // The library's own checks, at configure time rather than at the first render.
+    plan_params(s).validate().map_err(|e| e.to_string())?;
+    grid_params(s).validate().map_err(|e| e.to_string())?;
+    if !(s.sampling_scale.is_finite() && s.sampling_scale > 0.0) {
+        return Err(format!(
+            "sampling scale {}: must be finite and > 0",
+            s.sampling_scale
+        ));
+    }
+    if !(1..=MAX_LEAF_SIZE).contains(&(s.rbf_leaf_size as usize)) {
+        return Err(format!(
+            "RBF leaf size {}: must be 1..={MAX_LEAF_SIZE}",
+            s.rbf_leaf_size
+        ));
+    }
+    if !s.rbf_step.is_finite() {
+        return Err(format!(
+            "RBF step {} is not finite (<= 0: automatic)",
+            s.rbf_step
+        ));
+    }
+    if !(1..=1024).contains(&s.shadow_samples) {
+        return Err(format!(
+            "shadow samples {}: must be 1..=1024",
+            s.shadow_samples
+        ));
+    }
+    noise(&s.rbf_noise)?;
     Ok(())
 }
 
@@ -86,14 +130,10 @@ pub(crate) fn plan_of(
         } else {
             parse_field(&s.field)?
         },
-        adaptive: PlanParams {
-            tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
-            probe: s.probe,
-            superpixels: s.superpixels,
-            surface_cells: s.surface_cells,
-            interpolate: s.interpolate,
-            ..Default::default()
-        },
+        sampling_scale: s.sampling_scale,
+        grid: grid_params(s),
+        adaptive: plan_params(s),
+        occlusion_culling: s.occlusion_culling,
         depth_limit: (!depth_limit.is_empty()).then(|| Arc::from(depth_limit)),
         ..Default::default()
     };
@@ -115,6 +155,32 @@ pub(crate) fn plan_of(
     })
 }
 
+/// The adaptive plan's parameters `s` asks for (the strict bound turns relaxation,
+/// super-pixels and interpolation off, as the CLI's `--strict`).
+fn plan_params(s: &ffi::Settings) -> PlanParams {
+    let p = PlanParams {
+        tolerance: (s.error_tolerance > 0.0).then_some(s.error_tolerance),
+        relax: s.relax,
+        probe: s.probe,
+        superpixels: s.superpixels,
+        surface_cells: s.surface_cells,
+        interpolate: s.interpolate,
+    };
+    if s.strict {
+        p.strict()
+    } else {
+        p
+    }
+}
+
+/// The grid resolution `s` asks for.
+fn grid_params(s: &ffi::Settings) -> GridParams {
+    GridParams {
+        bundle: s.bundle,
+        depth_samples: s.depth_samples,
+    }
+}
+
 /// The stochastic march `s` asks for: the RBF field, or an SPH field lit with shadows.
 fn march(s: &ffi::Settings, camera: &Camera) -> Result<March, String> {
     let field = if is_rbf(&s.field) {
@@ -128,7 +194,8 @@ fn march(s: &ffi::Settings, camera: &Camera) -> Result<March, String> {
         } else {
             s.light
         };
-        Some(RbfShadows::new(light, s.shadow_ambient, 1).map_err(|e| e.to_string())?)
+        let samples = s.shadow_samples.max(1);
+        Some(RbfShadows::new(light, s.shadow_ambient, samples).map_err(|e| e.to_string())?)
     } else {
         None
     };
@@ -136,8 +203,11 @@ fn march(s: &ffi::Settings, camera: &Camera) -> Result<March, String> {
         field,
         params: RbfRenderParams {
             spp: s.samples_per_pixel.max(1),
+            first_pass: 0,
+            seed: s.rbf_seed,
+            step: (s.rbf_step > 0.0).then_some(s.rbf_step),
             shadows,
-            ..Default::default()
+            noise: noise(&s.rbf_noise)?,
         },
         progressive_passes: s.progressive_passes,
         time_refit: false,
@@ -171,7 +241,7 @@ fn options(s: &ffi::Settings, attribute: bool) -> Result<RbfOptions, String> {
         radius: (s.rbf_radius > 0.0).then_some(s.rbf_radius),
         radius_map,
         colouring,
-        ..Default::default()
+        leaf_size: s.rbf_leaf_size as usize,
     })
 }
 
@@ -232,6 +302,7 @@ mod tests {
             ),
             ("FluidCastBackend", crate::backend_names()),
             ("FluidCastMode", crate::mode_names()),
+            ("FluidCastRBFNoise", crate::rbf_noise_names()),
         ];
         for (property, names) in lists {
             let entries = enumeration(&xml, property);
