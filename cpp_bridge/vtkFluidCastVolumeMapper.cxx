@@ -561,6 +561,7 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.rbf_step = this->RBFStep;
     s.shadow_samples = static_cast<uint32_t>(this->ShadowSamples);
     s.rbf_noise = this->RBFNoise ? this->RBFNoise : "blue";
+    s.shade_volume = this->ShadeVolume != 0;
     r.configure(s);
     fluidcast::RenderInfo info = r.prepare();
     this->LastParticleCount = static_cast<vtkIdType>(info.particles);
@@ -907,6 +908,7 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "RBFStep: " << this->RBFStep << "\n";
   os << indent << "ShadowSamples: " << this->ShadowSamples << "\n";
   os << indent << "RBFNoise: " << (this->RBFNoise ? this->RBFNoise : "blue") << "\n";
+  os << indent << "ShadeVolume: " << this->ShadeVolume << "\n";
   os << indent << "LastDevice: " << this->LastDevice << "\n";
   os << indent << "VectorMode: " << this->VectorMode << "\n";
   os << indent << "VectorComponent: " << this->VectorComponent << "\n";

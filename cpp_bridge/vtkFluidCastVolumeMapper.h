@@ -307,6 +307,19 @@ public:
 
   ///@{
   /**
+   * Light the volume itself in composite mode (fluidcast render --shade-volume): Blinn–Phong
+   * with the volume property's Ambient, Diffuse, Specular and SpecularPower and a headlight,
+   * at the field's gradient; drawn by the exact reference caster. Off by default (the
+   * property's Shade then applies to iso-surfaces only, as ParaView turns Shade on by
+   * default).
+   */
+  vtkSetMacro(ShadeVolume, vtkTypeBool);
+  vtkGetMacro(ShadeVolume, vtkTypeBool);
+  vtkBooleanMacro(ShadeVolume, vtkTypeBool);
+  ///@}
+
+  ///@{
+  /**
    * Iso-surfaces, as vtkGPUVolumeRayCastMapper draws them: with BlendMode
    * vtkVolumeMapper::ISOSURFACE_BLEND the surfaces at the vtkVolumeProperty's
    * GetIsoSurfaceValues() are drawn, found exactly along each ray and lit with the property's
@@ -487,6 +500,7 @@ protected:
   double RBFStep = 0.0;
   int ShadowSamples = 1;
   char* RBFNoise = nullptr;
+  vtkTypeBool ShadeVolume = 0;
   int VectorMode = -1;
   int VectorComponent = 0;
   int BlendMode = vtkVolumeMapper::COMPOSITE_BLEND;

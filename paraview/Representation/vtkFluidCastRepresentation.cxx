@@ -465,6 +465,11 @@ void vtkFluidCastRepresentation::SetShadowSamples(int v)
   this->Mapper->SetShadowSamples(v);
 }
 
+void vtkFluidCastRepresentation::SetShadeVolume(int on)
+{
+  this->Mapper->SetShadeVolume(on);
+}
+
 void vtkFluidCastRepresentation::SetRBFNoise(int noise)
 {
   std::string name = vtkFluidCastVolumeMapper::GetRBFNoiseName(noise);

@@ -84,6 +84,7 @@ public:
   void SetRBFStep(double v);
   void SetShadowSamples(int v);
   void SetRBFNoise(int noise);
+  void SetShadeVolume(int on);
   ///@}
 
   ///@{

@@ -151,6 +151,9 @@ mod ffi {
         rbf_step: f64,
         /// RBF shadows: shadow rays per pixel and pass (`--shadow-samples`, 1..=1024).
         shadow_samples: u32,
+        /// Light the volume itself (Blinn–Phong with the volume property's coefficients
+        /// and a headlight; the CLI's `--shade-volume`): drawn by the reference caster.
+        shade_volume: bool,
     }
 
     /// Iso-surfaces the renders that follow draw (`vtkFluidCastVolumeMapper`'s iso-surface
@@ -628,22 +631,7 @@ impl Renderer {
                 IsoField::Attribute(Some(v.into()))
             }
         };
-        let lighting = if s.shade {
-            Lighting {
-                ambient: s.ambient,
-                diffuse: s.diffuse,
-                specular: s.specular,
-                specular_power: s.specular_power,
-                light: Light::Headlight,
-            }
-        } else {
-            Lighting {
-                ambient: 1.0,
-                diffuse: 0.0,
-                specular: 0.0,
-                ..Default::default()
-            }
-        };
+        let lighting = lighting_of(s);
         let surfaces = Surfaces {
             field,
             values: s.iso_values.clone(),
@@ -816,6 +804,10 @@ impl Renderer {
             let t = Instant::now();
             self.prepared()?;
             plan.params.surfaces = self.surfaces_now(&s.scalars)?;
+            if s.shade_volume {
+                let shading = self.surfaces.as_ref().map(lighting_of);
+                plan.params.volume_lighting = Some(shading.unwrap_or_default());
+            }
             self.open_backend(backend_of(s.backend)?, &s.adapter)?;
             let (Some(p), Some(b)) = (&mut self.prepared, &self.backend) else {
                 return Err("fluidcast: particles or backend missing".into());
@@ -828,6 +820,27 @@ impl Renderer {
             })?;
             Ok(finish(&r, (rgba, depth), t, &p.info))
         })
+    }
+}
+
+/// The lighting the volume property asks for: Blinn–Phong with a headlight when it shades,
+/// else flat (ambient 1).
+fn lighting_of(s: &ffi::SurfaceSettings) -> Lighting {
+    if s.shade {
+        Lighting {
+            ambient: s.ambient,
+            diffuse: s.diffuse,
+            specular: s.specular,
+            specular_power: s.specular_power,
+            light: Light::Headlight,
+        }
+    } else {
+        Lighting {
+            ambient: 1.0,
+            diffuse: 0.0,
+            specular: 0.0,
+            ..Default::default()
+        }
     }
 }
 
@@ -952,6 +965,7 @@ mod tests {
             rbf_leaf_size: fluidcast_backend::DEFAULT_LEAF_SIZE as u32,
             rbf_step: 0.0,
             shadow_samples: 1,
+            shade_volume: false,
         }
     }
 
