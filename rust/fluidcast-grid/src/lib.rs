@@ -16,11 +16,16 @@
 #![warn(missing_docs)]
 
 mod depths;
+mod pairs;
+mod sort;
 
 use fluidcast_sph::Particles;
 use fluidcast_view::ViewFrame;
 use glam::DVec3;
 use rayon::prelude::*;
+
+use pairs::{bundle_offsets, chunk_count, Footprint};
+use sort::sorted_cells;
 
 pub use depths::{within, SampleDepths, MAX_SAMPLES};
 
@@ -585,61 +590,6 @@ impl GridParams {
     }
 }
 
-/// Chunks of particles the grid counts and fills in parallel: enough for every thread,
-/// few enough that their per-bundle counts and slices (20 bytes a bundle each) stay near
-/// 80 MiB.
-fn chunk_count(particles: usize, bundles: usize) -> usize {
-    let want = rayon::current_num_threads() * 4;
-    let fit = (4 << 20) / bundles.max(1);
-    want.min(fit).clamp(1, particles.max(1))
-}
-
-/// Working memory of [`sort_bundle_pairs`], kept per thread across bundles.
-#[derive(Default)]
-struct SortScratch {
-    /// Per (cell, merge bit) slot: first the count, then the next place to write.
-    next: Vec<u32>,
-    sorted: Vec<u64>,
-}
-
-/// Sorts one bundle's keys `(cell << 33) | (merge bit << 32) | particle` (as `build_within`
-/// lays them out) into ascending order. The keys arrive in particle order, and a particle
-/// has one key per cell, so a stable counting sort by the upper half (cell and merge bit)
-/// puts them in the order a full sort does, in a few passes: 0.22 G instructions less than
-/// `sort_unstable` for the 227k-particle dam break at 1024 × 768 (callgrind, the whole
-/// render). Where the bundle's cells span far more depths than it holds keys (a few
-/// particles far apart in depth), counting would cost more than sorting.
-fn sort_bundle_pairs(keys: &mut [u64], scratch: &mut SortScratch) {
-    if keys.is_empty() {
-        return;
-    }
-    let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
-        (lo.min(k >> 32), hi.max(k >> 32))
-    });
-    let slots = (hi - lo + 1) as usize;
-    if slots > 2 * keys.len() + 64 || !keys.windows(2).all(|w| (w[0] as u32) <= (w[1] as u32)) {
-        keys.sort_unstable();
-        return;
-    }
-    let SortScratch { next, sorted } = scratch;
-    next.clear();
-    next.resize(slots + 1, 0);
-    for &k in keys.iter() {
-        next[((k >> 32) - lo) as usize + 1] += 1;
-    }
-    for s in 1..=slots {
-        next[s] += next[s - 1];
-    }
-    sorted.clear();
-    sorted.resize(keys.len(), 0);
-    for &k in keys.iter() {
-        let at = &mut next[((k >> 32) - lo) as usize];
-        sorted[*at as usize] = k;
-        *at += 1;
-    }
-    keys.copy_from_slice(sorted);
-}
-
 /// The sparse perspective grid of one view.
 #[derive(Debug, Clone)]
 pub struct PerspectiveGrid {
@@ -671,178 +621,6 @@ pub struct PerspectiveGrid {
     /// Bundle `b`'s cells are `cells[bundle_cells[b]..bundle_cells[b+1]]` (the first/last cell
     /// table of Sec. 6.1).
     bundle_cells: Vec<u32>,
-}
-
-/// What a particle's footprint in a view's grid depends on: the view, its depth samples and
-/// their range, bundle size D_xy, D_z and bundles per row.
-struct Footprint<'a> {
-    frame: &'a ViewFrame,
-    depths: &'a SampleDepths,
-    range: (f64, f64),
-    bundle: u32,
-    dz: usize,
-    bundles_x: u32,
-}
-
-impl Footprint<'_> {
-    /// The bundle rectangle and cell depth range (inclusive) particle `p` reaches, `None`
-    /// when it reaches no pixel or depth sample. Computed where needed, twice, rather than
-    /// stored: 28 bytes a particle.
-    #[inline]
-    fn of(&self, p: &ViewParticle) -> Option<[u32; 6]> {
-        let (near, far) = self.range;
-        let r = screen_rect(self.frame, p, near, far)?;
-        let k = self.depths.indices_within(p.c[2] - p.h(), p.c[2] + p.h());
-        if k.is_empty() {
-            return None;
-        }
-        let (d, dz) = (self.bundle, self.dz);
-        Some([
-            r[0] / d,
-            (r[1] - 1) / d,
-            r[2] / d,
-            (r[3] - 1) / d,
-            (k.start / dz) as u32,
-            ((k.end - 1) / dz) as u32,
-        ])
-    }
-
-    /// Calls `pair(bundle, cell z, merge bit)` for every cell of footprint `f`.
-    #[inline]
-    fn each_pair(&self, f: &[u32; 6], pair: &mut dyn FnMut(usize, u32, bool)) {
-        for y in f[2]..=f[3] {
-            for x in f[0]..=f[1] {
-                for z in f[4]..=f[5] {
-                    pair((y * self.bundles_x + x) as usize, z, z < f[5]);
-                }
-            }
-        }
-    }
-
-    /// Per chunk of `chunk_len` particles, its pairs per bundle (of `nb`); and the visible
-    /// particles.
-    fn count(
-        &self,
-        particles: &[ViewParticle],
-        chunk_len: usize,
-        nb: usize,
-    ) -> (Vec<Vec<u32>>, usize) {
-        let counts: Vec<(Vec<u32>, usize)> = particles
-            .par_chunks(chunk_len)
-            .map(|ps| {
-                let mut c = vec![0u32; nb];
-                let mut visible = 0;
-                for f in ps.iter().filter_map(|p| self.of(p)) {
-                    visible += 1;
-                    self.each_pair(&f, &mut |b, _, _| c[b] += 1);
-                }
-                (c, visible)
-            })
-            .collect();
-        let visible = counts.iter().map(|c| c.1).sum();
-        (counts.into_iter().map(|c| c.0).collect(), visible)
-    }
-
-    /// The pairs' keys (cell z << 33 | merge bit << 32 | particle), grouped by bundle, each
-    /// chunk's keys from its own start in each bundle (`counts`), `total` in all.
-    fn keys(
-        &self,
-        particles: &[ViewParticle],
-        chunk_len: usize,
-        counts: Vec<Vec<u32>>,
-        total: usize,
-    ) -> Vec<u64> {
-        let nb = counts.first().map_or(0, Vec::len);
-        let mut keys = vec![0u64; total];
-        // Each chunk's own slice of each bundle's keys.
-        let mut own: Vec<Vec<&mut [u64]>> =
-            (0..counts.len()).map(|_| Vec::with_capacity(nb)).collect();
-        let mut rest = keys.as_mut_slice();
-        for b in 0..nb {
-            for (c, count) in own.iter_mut().zip(&counts) {
-                let (a, r) = rest.split_at_mut(count[b] as usize);
-                c.push(a);
-                rest = r;
-            }
-        }
-        drop(counts);
-        particles
-            .par_chunks(chunk_len)
-            .zip(own.into_par_iter())
-            .enumerate()
-            .for_each(|(ci, (ps, mut slices))| {
-                let mut used = vec![0u32; nb];
-                for (k, p) in ps.iter().enumerate() {
-                    let Some(f) = self.of(p) else { continue };
-                    let j = (ci * chunk_len + k) as u64;
-                    self.each_pair(&f, &mut |b, z, bit| {
-                        slices[b][used[b] as usize] = ((z as u64) << 33) | ((bit as u64) << 32) | j;
-                        used[b] += 1;
-                    });
-                }
-            });
-        keys
-    }
-}
-
-/// Where each bundle's pairs start (`nb + 1` offsets), from the chunks' counts.
-fn bundle_offsets(counts: &[Vec<u32>], nb: usize) -> Vec<usize> {
-    let mut offsets = vec![0usize; nb + 1];
-    for c in counts {
-        for (o, &k) in offsets[1..].iter_mut().zip(c) {
-            *o += k as usize;
-        }
-    }
-    for b in 0..nb {
-        offsets[b + 1] += offsets[b];
-    }
-    offsets
-}
-
-/// Sorts each bundle's keys (between `offsets`) by (cell, merge bit, particle), in parallel,
-/// and returns each bundle's cells, front to back.
-fn sorted_cells(keys: &mut [u64], offsets: &[usize]) -> Vec<Vec<Cell>> {
-    let nb = offsets.len() - 1;
-    let mut slices: Vec<&mut [u64]> = Vec::with_capacity(nb);
-    let mut rest = keys;
-    for b in 0..nb {
-        let (a, r) = rest.split_at_mut(offsets[b + 1] - offsets[b]);
-        slices.push(a);
-        rest = r;
-    }
-    slices
-        .into_par_iter()
-        .enumerate()
-        .map_init(SortScratch::default, |scratch, (b, s)| {
-            sort_bundle_pairs(s, scratch);
-            cells_of(s, offsets[b] as u32)
-        })
-        .collect()
-}
-
-/// The cells of one bundle's sorted keys `s`, whose references start at `base`.
-fn cells_of(s: &[u64], base: u32) -> Vec<Cell> {
-    let mut cells: Vec<Cell> = Vec::new();
-    for (i, &k) in s.iter().enumerate() {
-        let z = (k >> 33) as u32;
-        let bit = (k >> 32) & 1 == 1;
-        let i = base + i as u32;
-        match cells.last_mut() {
-            Some(c) if c.z == z => {
-                c.end = i + 1;
-                if !bit {
-                    c.unique_end = i + 1;
-                }
-            }
-            _ => cells.push(Cell {
-                z,
-                start: i,
-                unique_end: if bit { i } else { i + 1 },
-                end: i + 1,
-            }),
-        }
-    }
-    cells
 }
 
 impl PerspectiveGrid {

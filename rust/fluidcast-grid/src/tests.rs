@@ -1,4 +1,5 @@
 use super::*;
+use crate::sort::{sort_bundle_pairs, SortScratch};
 use fluidcast_view::Camera;
 
 fn cloud(n: usize, seed: u32) -> Particles {
