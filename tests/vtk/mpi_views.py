@@ -1,7 +1,9 @@
 """The views the MPI tests render (pvbatch_mpi_render.py under pvbatch, pvserver_mpi.py as a
 client): a particle file with the "fluidcast" representation, four camera directions, one
 screenshot each. Imported by those scripts (they put this folder on sys.path), and by the
-other pvbatch scripts for the bare white view they all compare screenshots in."""
+other pvbatch scripts for the bare white view they all compare screenshots in, the PNG
+reader and the camera file they share."""
+import json
 import os
 
 from paraview.simple import (
@@ -16,6 +18,8 @@ from paraview.simple import (
     SaveScreenshot,
     Show,
 )
+from vtkmodules.util.numpy_support import vtk_to_numpy
+from vtkmodules.vtkIOImage import vtkPNGReader
 
 W, H = 320, 240
 # (name, azimuth, elevation) from ParaView's default view down -z: the pieces are slabs along
@@ -34,6 +38,24 @@ def white_view(width, height):
         view.UseColorPaletteForBackground = 0
     view.Background = [1.0, 1.0, 1.0]
     return view
+
+
+def read_png(path):
+    """The RGB of a PNG's pixels, as an (n, 3) integer array in VTK's row order."""
+    r = vtkPNGReader()
+    r.SetFileName(path)
+    r.Update()
+    return vtk_to_numpy(r.GetOutput().GetPointData().GetScalars())[:, :3].astype(int)
+
+
+def write_camera(cam, path):
+    """`cam` (a vtkCamera or ParaView's camera) as the camera file `fluidcast render --camera`
+    reads."""
+    with open(path, "w") as f:
+        json.dump({"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
+                   "view_up": list(cam.GetViewUp()), "view_angle": cam.GetViewAngle(),
+                   "parallel_projection": bool(cam.GetParallelProjection()),
+                   "parallel_scale": cam.GetParallelScale()}, f)
 
 
 def render_views(data, array, out, tolerance, radius=(), remote_render_threshold=None):

@@ -27,7 +27,7 @@ import os
 import subprocess
 import sys
 
-from mpi_views import white_view  # tests/vtk, the script's folder
+from mpi_views import read_png, white_view, write_camera  # tests/vtk, the script's folder
 from paraview.simple import (
     ColorBy,
     GetActiveCamera,
@@ -40,8 +40,6 @@ from paraview.simple import (
     Show,
 )
 from pvbatch_mpi import missing_data
-from vtkmodules.util.numpy_support import vtk_to_numpy
-from vtkmodules.vtkIOImage import vtkPNGReader
 
 flags = ("--properties", "--iso", "--memory-limit")
 args = [a for a in sys.argv[1:] if a not in flags]
@@ -102,11 +100,7 @@ def screenshot(name=""):
 
 shot = screenshot()
 
-with open(os.path.join(out, "camera.json"), "w") as f:
-    json.dump({"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
-               "view_up": list(cam.GetViewUp()), "view_angle": cam.GetViewAngle(),
-               "parallel_projection": bool(cam.GetParallelProjection()),
-               "parallel_scale": cam.GetParallelScale()}, f)
+write_camera(cam, os.path.join(out, "camera.json"))
 
 
 def cli_render(png, component="mag", extra=(), surfaces=True):
@@ -129,16 +123,7 @@ cli_png = os.path.join(out, "cli.png")
 cli_render(cli_png)
 
 
-def read(path):
-    r = vtkPNGReader()
-    r.SetFileName(path)
-    r.Update()
-    im = r.GetOutput()
-    a = vtk_to_numpy(im.GetPointData().GetScalars())
-    return a[:, :3].astype(int)
-
-
-a, b = read(shot), read(cli_png)
+a, b = read_png(shot), read_png(cli_png)
 if a.shape != b.shape:
     print(f"FAIL: sizes differ {a.shape} vs {b.shape}")
     sys.exit(1)
@@ -150,19 +135,19 @@ print(f"ParaView vs CLI: max abs {d.max()}/255, mean {d.mean():.4f}/255, "
 status = 0 if d.max() <= allowed else 1
 if backend == "GPU":
     display.FluidCastBackend = "CPU"
-    g = abs(read(screenshot("cpu")) - a)
+    g = abs(read_png(screenshot("cpu")) - a)
     print(f"FluidCastBackend GPU vs CPU: max abs {g.max()}/255, mean {g.mean():.5f}/255")
     status = status or (0 if g.max() <= 2 else 1)
     # The properties reach the mapper: a GPU adapter nobody has draws nothing (an error).
     display.FluidCastBackend = "GPU"
     display.FluidCastAdapter = "no-such-gpu"
-    drawn_none = int((read(screenshot("no_adapter")) != 255).any(axis=1).sum())
+    drawn_none = int((read_png(screenshot("no_adapter")) != 255).any(axis=1).sum())
     print(f"FluidCastAdapter 'no-such-gpu': {drawn_none} pixels drawn (expected none)")
     status = status or (0 if drawn_none == 0 else 1)
 if iso:
     volume_png = os.path.join(out, "cli_volume.png")
     cli_render(volume_png, surfaces=False)
-    moved = int(abs(a - read(volume_png)).max())
+    moved = int(abs(a - read_png(volume_png)).max())
     print(f"iso-surface screenshot vs the CLI's volume: max {moved}/255 (must exceed {allowed})")
     if moved <= allowed:
         print("FAIL: the representation drew no surface")
@@ -174,10 +159,10 @@ if drawn < W * H // 20:
 
 def property_follows_cli(name, component="mag", extra=()):
     """The screenshot agrees with the CLI under the same option; the default does not."""
-    shot_p = read(screenshot(name))
+    shot_p = read_png(screenshot(name))
     cli_p = os.path.join(out, f"cli_{name}.png")
     cli_render(cli_p, component, extra)
-    theirs = read(cli_p)
+    theirs = read_png(cli_p)
     agree, moved = int(abs(shot_p - theirs).max()), int(abs(a - theirs).max())
     print(f"{name}: ParaView vs CLI max {agree}/255 (allowed {allowed}); "
           f"default screenshot vs this CLI max {moved}/255")
@@ -193,13 +178,13 @@ if memory_limit:
     n = reader.GetDataInformation().GetNumberOfPoints()
     mib = (W * H * 64 + 9 * n + (2 << 20)) / 2**20
     display.FluidCastMemoryLimit = mib
-    tiled = abs(read(screenshot("memory_limit")) - a).max()
+    tiled = abs(read_png(screenshot("memory_limit")) - a).max()
     print(f"FluidCastMemoryLimit {mib:.2f} MiB ({n} particles): vs no limit max {tiled}/255")
     display.FluidCastMemoryLimit = 1.0
-    drawn_none = int((read(screenshot("memory_limit_1")) != 255).any(axis=1).sum())
+    drawn_none = int((read_png(screenshot("memory_limit_1")) != 255).any(axis=1).sum())
     print(f"FluidCastMemoryLimit 1 MiB: {drawn_none} pixels drawn (expected none)")
     display.FluidCastMemoryLimit = 0.0
-    again = abs(read(screenshot("memory_limit_0")) - a).max()
+    again = abs(read_png(screenshot("memory_limit_0")) - a).max()
     ok = tiled == 0 and drawn_none == 0 and again == 0
     if not ok:
         print("FAIL: FluidCastMemoryLimit changed the image or was not applied")

@@ -21,7 +21,7 @@ import subprocess
 import sys
 
 from fluidcast import vtkFluidCastVolumeMapper
-from mpi_views import white_view  # tests/vtk, the script's folder
+from mpi_views import read_png, white_view, write_camera  # tests/vtk, the script's folder
 from paraview.simple import (
     ColorBy,
     GetActiveCamera,
@@ -36,7 +36,6 @@ from paraview.simple import (
 from pvbatch_mpi import missing_data
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction
-from vtkmodules.vtkIOImage import vtkPNGReader
 from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 from vtkmodules.vtkRenderingCore import (
     vtkColorTransferFunction,
@@ -85,20 +84,10 @@ cam.Azimuth(30)
 cam.Elevation(20)
 cam.OrthogonalizeViewUp()
 view.ResetCamera()
-with open(os.path.join(out, "camera.json"), "w") as f:
-    json.dump({"position": list(cam.GetPosition()), "focal_point": list(cam.GetFocalPoint()),
-               "view_up": list(cam.GetViewUp()), "view_angle": cam.GetViewAngle(),
-               "parallel_projection": False, "parallel_scale": cam.GetParallelScale()}, f)
+write_camera(cam, os.path.join(out, "camera.json"))
 with open(os.path.join(out, "tf.json"), "w") as f:
     json.dump([{"Name": "parity", "ColorSpace": "RGB", "RGBPoints": list(lut.RGBPoints),
                 "Points": list(pwf.Points)}], f)
-
-
-def read_png(path):
-    r = vtkPNGReader()
-    r.SetFileName(path)
-    r.Update()
-    return vtk_to_numpy(r.GetOutput().GetPointData().GetScalars())[:, :3].astype(int)
 
 
 # --- the VTK window: the wrapped mapper with the same data, camera and transfer function ---
@@ -358,11 +347,7 @@ def rbf_on_the_gpu(path):
     rbf_vtk(mapper)
     mapper.SetBackend(2)
     ren.ResetCamera()
-    vc = ren.GetActiveCamera()
-    with open(os.path.join(out, "camera_small.json"), "w") as f:
-        json.dump({"position": vc.GetPosition(), "focal_point": vc.GetFocalPoint(),
-                   "view_up": vc.GetViewUp(), "view_angle": vc.GetViewAngle(),
-                   "parallel_projection": False, "parallel_scale": 1.0}, f)
+    write_camera(ren.GetActiveCamera(), os.path.join(out, "camera_small.json"))
     r.Update()
     lo_s, hi_s = r.GetOutput().GetPointData().GetArray(array).GetRange(-1)
     ctf.RemoveAllPoints()

@@ -28,7 +28,7 @@ import xml.etree.ElementTree as ET
 
 faulthandler.enable(file=sys.__stderr__)
 
-from mpi_views import white_view  # tests/vtk, the script's folder
+from mpi_views import read_png, white_view  # tests/vtk, the script's folder
 from paraview.simple import (
     ColorBy,
     Delete,
@@ -44,9 +44,7 @@ from paraview.simple import (
     servermanager,
 )
 from pvbatch_mpi import missing_data
-from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
-from vtkmodules.vtkIOImage import vtkPNGReader
 
 bench = "--bench" in sys.argv
 plugin, series, array, out = [a for a in sys.argv[1:] if a != "--bench"][:4]
@@ -87,10 +85,7 @@ def screenshot(name):
     Render(view)
     path = os.path.join(out, f"{name}.png")
     SaveScreenshot(path, view, ImageResolution=[W, H], TransparentBackground=0)
-    r = vtkPNGReader()
-    r.SetFileName(path)
-    r.Update()
-    return vtk_to_numpy(r.GetOutput().GetPointData().GetScalars())[:, :3].astype(int)
+    return read_png(path)
 
 
 def points(source):
