@@ -11,8 +11,7 @@ use fluidcast_sph::Particles;
 
 use crate::plan::{Mode, RenderPlan, Tiles};
 use crate::scene::LodReport;
-use crate::{march, BackendError, PlanItem, Renderer, Scene};
-use fluidcast_render::IsoField;
+use crate::{march, BackendError, Renderer, Scene};
 
 /// One rendered frame and what a front-end tells its user about it.
 #[derive(Debug, Clone)]
@@ -59,9 +58,9 @@ impl Renderer {
     /// cut and in screen tiles when asked. What the scene keeps (surface flags, hierarchy and
     /// cut, the marched field, accumulated passes) is reused by later frames.
     pub fn render(&self, scene: &mut Scene, plan: &RenderPlan) -> Result<Rendered, BackendError> {
+        plan.check()?;
         let mut notes: Vec<String> = self.note().map(str::to_string).into_iter().collect();
         if let Some(m) = &plan.march {
-            check_march(plan)?;
             let f = march::render(scene, &plan.params, m, self.gpu())?;
             let device = if f.on_gpu {
                 self.device()
@@ -79,7 +78,6 @@ impl Renderer {
                 march_bvh_bytes: Some(f.bvh_bytes),
             });
         }
-        check_lod(plan)?;
         let (mode, note) = plan.mode_for(self.requested);
         notes.extend(note.map(str::to_string));
         let flags = mode == Mode::Adaptive && plan.params.adaptive.uses_surface_cells();
@@ -235,48 +233,4 @@ fn prepare(
         notes.push(report.line());
     }
     Ok(Some(report))
-}
-
-/// Level of detail merges the rendered attribute only: iso-surfaces of another array are
-/// refused with it.
-fn check_lod(plan: &RenderPlan) -> Result<(), BackendError> {
-    let other = plan
-        .params
-        .surfaces
-        .as_ref()
-        .is_some_and(|s| matches!(s.field, IsoField::Attribute(Some(_))));
-    if plan.lod.is_some() && other {
-        return Err(BackendError::Refused {
-            item: PlanItem::Lod,
-            why: "level of detail with iso-surfaces of another array: the hierarchy merges the rendered array only; turn level of detail off or draw surfaces of the rendered array".into(),
-        });
-    }
-    Ok(())
-}
-
-/// What the stochastic march does not do yet, refused by name.
-fn check_march(plan: &RenderPlan) -> Result<(), BackendError> {
-    let refuse = |item, why: &str| {
-        let why = why.to_string();
-        Err(BackendError::Refused { item, why })
-    };
-    if plan.lod.is_some() {
-        return refuse(PlanItem::Lod, "level of detail does not apply to the RBF field and shadows, which have their own cluster hierarchy");
-    }
-    if plan.tiles != Tiles::default() {
-        return refuse(PlanItem::Tiles, "the RBF field and shadows do not render in screen tiles (a memory limit or a tile count) yet");
-    }
-    if plan.params.surfaces.is_some() || plan.params.volume_lighting.is_some() {
-        return refuse(
-            PlanItem::Surfaces,
-            "the RBF field and shadows draw no iso-surfaces and no shaded volume yet",
-        );
-    }
-    if plan.mode.is_some() {
-        return refuse(
-            PlanItem::Mode,
-            "the RBF field and shadows are drawn by their own ray marcher: no mode applies",
-        );
-    }
-    Ok(())
 }

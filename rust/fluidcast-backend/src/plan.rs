@@ -8,7 +8,9 @@
 use fluidcast_rbf::RbfOptions;
 use fluidcast_render::{RbfRenderParams, RenderParams};
 
-use crate::Backend;
+use fluidcast_render::IsoField;
+
+use crate::{Backend, BackendError, PlanItem};
 
 /// How the SPH volume is sampled along the rays.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,6 +108,19 @@ pub struct RenderPlan {
 pub const REFERENCE_FOR_SURFACES: &str = "rendering with the reference ray caster (exact, and it composites translucent surfaces with the volume)";
 
 impl RenderPlan {
+    /// Refuses what the renderer does not draw yet, naming the part of the plan
+    /// ([`BackendError::Refused`]): level of detail with iso-surfaces of another array; the
+    /// stochastic march with level of detail, tiles, surfaces, a shaded volume or a mode.
+    /// [`crate::Renderer::render`] runs it; a front-end runs it early to refuse options
+    /// before reading any data.
+    pub fn check(&self) -> Result<(), BackendError> {
+        check_lod(self)?;
+        if self.march.is_some() {
+            check_march(self)?;
+        }
+        Ok(())
+    }
+
     /// The image size, pixels (width, height).
     pub fn size(&self) -> (u32, u32) {
         (self.params.width, self.params.height)
@@ -125,4 +140,48 @@ impl RenderPlan {
         }
         (Mode::Adaptive, None)
     }
+}
+
+/// Level of detail merges the rendered attribute only: iso-surfaces of another array are
+/// refused with it.
+fn check_lod(plan: &RenderPlan) -> Result<(), BackendError> {
+    let other = plan
+        .params
+        .surfaces
+        .as_ref()
+        .is_some_and(|s| matches!(s.field, IsoField::Attribute(Some(_))));
+    if plan.lod.is_some() && other {
+        return Err(BackendError::Refused {
+            item: PlanItem::Lod,
+            why: "level of detail with iso-surfaces of another array: the hierarchy merges the rendered array only; turn level of detail off or draw surfaces of the rendered array".into(),
+        });
+    }
+    Ok(())
+}
+
+/// What the stochastic march does not do yet, refused by name.
+fn check_march(plan: &RenderPlan) -> Result<(), BackendError> {
+    let refuse = |item, why: &str| {
+        let why = why.to_string();
+        Err(BackendError::Refused { item, why })
+    };
+    if plan.lod.is_some() {
+        return refuse(PlanItem::Lod, "level of detail does not apply to the RBF field and shadows, which have their own cluster hierarchy");
+    }
+    if plan.tiles != Tiles::default() {
+        return refuse(PlanItem::Tiles, "the RBF field and shadows do not render in screen tiles (a memory limit or a tile count) yet");
+    }
+    if plan.params.surfaces.is_some() || plan.params.volume_lighting.is_some() {
+        return refuse(
+            PlanItem::Surfaces,
+            "the RBF field and shadows draw no iso-surfaces and no shaded volume yet",
+        );
+    }
+    if plan.mode.is_some() {
+        return refuse(
+            PlanItem::Mode,
+            "the RBF field and shadows are drawn by their own ray marcher: no mode applies",
+        );
+    }
+    Ok(())
 }

@@ -4,7 +4,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_backend::{
-    Backend, March, Marched, Mode, RenderPlan, RenderStats, Rendered, Renderer, Scene, Tiles,
+    Backend, BackendError, March, Marched, Mode, PlanItem, RenderPlan, RenderStats, Rendered,
+    Renderer, Scene, Tiles,
 };
 use fluidcast_image::Image;
 use fluidcast_io::{Arrays, Frame, Input};
@@ -112,21 +113,31 @@ impl SplitArgs {
             budget_bytes: Some(limit.saturating_sub(held)),
         })
     }
+}
 
-    /// `e` (a render's error) with what `--memory-limit` had to do with it.
-    fn explain(&self, e: fluidcast_backend::BackendError) -> anyhow::Error {
-        match (self.memory_limit, fluidcast_mem::resident()) {
-            (Some(limit), Some(held)) if e.is_memory_budget() => {
-                anyhow::Error::new(e).context(format!(
-                    "--memory-limit {}: the particles and what the process holds already take {}; \
-                 raise the limit",
-                    fluidcast_mem::Bytes(limit),
-                    fluidcast_mem::Bytes(held)
-                ))
-            }
-            _ => e.into(),
-        }
+/// `e` (the library's refusal of a plan, or a render's error) with the options behind it:
+/// the refused part of the plan named by its flags, and what `--memory-limit` left.
+fn option_error(a: &RenderArgs, e: BackendError) -> anyhow::Error {
+    if let (Some(limit), Some(held), true) = (
+        a.split.memory_limit,
+        fluidcast_mem::resident(),
+        e.is_memory_budget(),
+    ) {
+        return anyhow::Error::new(e).context(format!(
+            "--memory-limit {}: the particles and what the process holds already take {}; \
+             raise the limit",
+            fluidcast_mem::Bytes(limit),
+            fluidcast_mem::Bytes(held)
+        ));
     }
+    let flags = match e.item() {
+        Some(PlanItem::Mode) => "--mode",
+        Some(PlanItem::Tiles) => "--memory-limit/--tiles",
+        Some(PlanItem::Lod) => "--lod",
+        Some(PlanItem::Surfaces) => "--iso/--shade-volume",
+        None => return e.into(),
+    };
+    anyhow::Error::new(e).context(flags)
 }
 
 /// Opens the backend for the adaptive renderer (the reference renderer runs on the CPU), and
@@ -497,27 +508,12 @@ pub(crate) fn progress_bar(len: usize, unit: &str) -> ProgressBar {
     pb
 }
 
-/// `--field rbf`: the field's options, after refusing what its renderer does not do.
-/// `--field rbf`, or an SPH field with `--shadows`: what the stochastic ray marcher draws,
-/// after refusing what it does not do.
+/// `--field rbf`, or an SPH field with `--shadows`: what the stochastic ray marcher draws.
+/// What the march does not draw with it (a mode, tiles, surfaces, level of detail) is the
+/// library's to refuse ([`RenderPlan::check`], in [`base_plan`]).
 fn rbf_setup(a: &RenderArgs) -> Result<Option<Marched>> {
-    let what = if a.particles.rbf() {
-        "--field rbf"
-    } else if a.rbf.shadows {
-        "--shadows"
-    } else {
+    if !a.particles.rbf() && !a.rbf.shadows {
         return Ok(None);
-    };
-    if a.sampling.mode.is_some() {
-        bail!("{what} is drawn by its own ray marcher (on the CPU, or with --backend gpu on the GPU): drop --mode");
-    }
-    if a.split.memory_limit.is_some() || a.split.tiles.is_some() {
-        bail!("{what} does not render in screen tiles yet: drop --memory-limit and --tiles");
-    }
-    if a.surface.on() || a.surface.shade_volume {
-        bail!(
-            "{what} draws no iso-surfaces and no shaded volume yet: drop --iso and --shade-volume"
-        );
     }
     // The march's own errors (bad --light, --rbf-step), before reading.
     a.rbf
@@ -543,19 +539,32 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
     if a.surface.shade_volume && a.sampling.backend == Backend::Gpu {
         bail!("--shade-volume: the GPU backend does not draw a shaded volume yet; drop --backend gpu (it renders on the CPU)");
     }
-    let march = rbf_setup(a)?;
-    if a.lod.is_some() && march.is_some() {
-        bail!("--lod: the RBF field (--field rbf) has its own cluster hierarchy; drop --lod");
-    }
+    let march = rbf_setup(a)?.map(|field| March {
+        field,
+        params: Default::default(),
+        progressive_passes: 0,
+        time_refit: a.stats.is_some(),
+    });
     let plan = RenderPlan {
         params,
         mode: a.sampling.plan_mode(),
         tiles: Tiles::default(),
         lod: a.lod,
-        march: None,
+        march,
     };
+    // The library's refusals of option combinations, before reading (the tiles the options
+    // ask for stand in for the budget each frame computes).
+    let asked = Tiles {
+        count: a.split.tiles,
+        budget_bytes: a.split.memory_limit,
+    };
+    let early = RenderPlan {
+        tiles: asked,
+        ..plan.clone()
+    };
+    early.check().map_err(|e| option_error(a, e))?;
     let (mode, note) = plan.mode_for(a.sampling.backend);
-    if let (Some(n), None) = (note, &march) {
+    if let (Some(n), None) = (note, &plan.march) {
         let what = if a.surface.on() {
             "--iso"
         } else {
@@ -564,21 +573,12 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
         eprintln!("note: {what}: {n} (--mode reference)");
     }
     // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
-    let mode = if march.is_some() {
+    let mode = if plan.march.is_some() {
         Mode::Adaptive
     } else {
         mode
     };
     let renderer = open_backend(&a.sampling, mode)?;
-    let plan = RenderPlan {
-        march: march.map(|field| March {
-            field,
-            params: Default::default(),
-            progressive_passes: 0,
-            time_refit: a.stats.is_some(),
-        }),
-        ..plan
-    };
     Ok((plan, renderer))
 }
 
@@ -593,6 +593,8 @@ struct Job<'a> {
     progress: Option<ProgressBar>,
     stats: Vec<serde_json::Value>,
     several: bool,
+    /// `--background`, parsed once.
+    background: [f32; 3],
 }
 
 impl Job<'_> {
@@ -616,9 +618,6 @@ impl Job<'_> {
     /// from the camera.
     fn frame_plan(&self, scene: &Scene, iso: Option<Arc<[f32]>>) -> Result<RenderPlan> {
         let a = self.a;
-        if a.lod.is_some() && iso.is_some() {
-            bail!("--lod: iso-surfaces of another array (--iso-field) are not merged into the hierarchy; drop --lod or draw the surfaces of the rendered array");
-        }
         let mut plan = self.plan.clone();
         plan.params.surfaces = a.surface.surfaces(a.particles.array.as_deref(), iso)?;
         if let Some(m) = &mut plan.march {
@@ -653,7 +652,7 @@ impl Job<'_> {
         let r = self
             .renderer
             .render(&mut scene, &plan)
-            .map_err(|e| a.split.explain(e))
+            .map_err(|e| option_error(a, e))
             .with_context(|| format!("rendering {}", file.display()))?;
         if let (Some(l), None) = (&r.lod, &self.progress) {
             eprintln!("{}", l.line());
@@ -694,7 +693,7 @@ impl Job<'_> {
             fluidcast_image::PngEncoding::Vtk
         };
         image
-            .save(&out, parse_background(&a.background)?, encoding)
+            .save(&out, self.background, encoding)
             .with_context(|| format!("writing {}", out.display()))?;
         if a.aovs {
             write_aov_pngs(&image, &out, self.plan.params.adaptive.tolerance)?;
@@ -748,7 +747,7 @@ impl Job<'_> {
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    parse_background(&a.background)?;
+    let background = parse_background(&a.background)?;
     let input = Input::open(&a.input)?;
     if let Input::Series(c) = &input {
         note_shared_times(c);
@@ -771,6 +770,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         progress: (frames.len() > 1).then(|| progress_bar(frames.len(), "frames")),
         stats: Vec::new(),
         several: frames.len() > 1,
+        background,
     };
     let started = Instant::now();
     for_each_frame(&input, &all, &frames, &recipe, !a.no_prefetch, |f| {
