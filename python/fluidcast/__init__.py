@@ -6,7 +6,7 @@ with a screen-space error the user chooses.
 * ``fluidcast.vtkFluidCastVolumeMapper``: the VTK volume mapper (a ``vtkAbstractVolumeMapper``
   for a ``vtkVolume``), and ``fluidcast.vtkFluidCastReader``, fluidcast's checked particle-file
   reader as a VTK source. Both are compiled against the VTK of the Python that installed the
-  package (see the README); they load on first use.
+  package (see docs/vtk-and-python.md); they load on first use.
 * ``fluidcast.add_particles(plotter, mesh, ...)``: the mapper in a pyvista ``Plotter``, with
   pyvista's ``add_volume`` conventions; ``fluidcast.read(path)`` reads particles into pyvista.
 * Helpers for working beside VTK, used by the tests and examples: cameras

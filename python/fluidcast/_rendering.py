@@ -16,7 +16,7 @@ except ImportError as e:
         "fluidcast's VTK mapper is not available in this Python (VTK "
         f"{vtkmodules.__version__}): {e}. It is compiled against the VTK this Python imports; "
         "install fluidcast with `pip install .` from a checkout into a Python whose VTK has "
-        "development files (ParaView's on Debian, conda-forge's vtk), see the README's "
+        "development files (ParaView's on Debian, conda-forge's vtk), see docs/vtk-and-python.md's "
         "'Use from VTK and pyvista'."
     ) from e
 

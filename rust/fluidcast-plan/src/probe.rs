@@ -29,9 +29,9 @@ pub(crate) fn cast_work(refs: u32, choice: Choice) -> u64 {
 
 /// Adapting pays where the planned work of the probe's bundles is at least
 /// `PROBE_SAVING_NUM / PROBE_SAVING_DEN` below their full-rate work. The analysis took 0.07
-/// to 0.19 of the full-rate cast's time on the README's dam breaks (1024 × 768, velocity);
+/// to 0.19 of the full-rate cast's time on the dam breaks of docs/how-it-renders.md (1024 × 768, velocity);
 /// the probes of the frames where adapting paid predicted savings of 0.27 and more, those of
-/// the frames where it did not 0.15 and less (`fluidcast bench`, README). A rough measure,
+/// the frames where it did not 0.15 and less (`fluidcast bench`, docs/how-it-renders.md). A rough measure,
 /// ignoring early termination and merging, with a margin on both sides. (plan.wgsl reads
 /// these constants.)
 pub const PROBE_SAVING_NUM: u64 = 1;
