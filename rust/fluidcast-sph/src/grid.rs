@@ -1,3 +1,5 @@
+use rayon::prelude::*;
+
 /// A uniform world-space grid over particle positions for fixed-radius neighbour queries.
 ///
 /// Particles are sorted by cell (counting sort); each cell stores a range into the sorted
@@ -112,4 +114,91 @@ pub(crate) fn bounds(p: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
         }
     }
     (lo, hi)
+}
+
+/// The distinct positions of a point set: coincident particles (a piece listed twice in a
+/// `.pvtu`, parts repeated in a `.pvd`, an inflow that stacks particles) see the same
+/// neighbours, so neighbourhood work runs once per position, weighted by how many share it,
+/// and stays linear however many copies there are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Distinct {
+    /// Each distinct position once (world space), in order of first appearance.
+    pub points: Vec<[f32; 3]>,
+    /// How many of the input points lie at `points[k]`.
+    pub weights: Vec<u32>,
+    /// For every input point, the index of its position in `points`.
+    pub of: Vec<u32>,
+}
+
+impl Distinct {
+    /// The distinct positions of `positions` (bit-equal after turning -0 into 0; NaN
+    /// coordinates compare by their bits).
+    pub fn of(positions: &[[f32; 3]]) -> Distinct {
+        let key = |i: u32| positions[i as usize].map(|v| (v + 0.0).to_bits());
+        let mut order: Vec<u32> = (0..positions.len() as u32).collect();
+        // Stable: equal keys stay in input order, so each group's first index comes first.
+        order.par_sort_by_key(|&i| key(i));
+        let mut of = vec![0u32; positions.len()];
+        let mut firsts: Vec<u32> = Vec::new();
+        let mut weights_sorted: Vec<u32> = Vec::new();
+        for (k, &i) in order.iter().enumerate() {
+            if k == 0 || key(i) != key(order[k - 1]) {
+                firsts.push(i);
+                weights_sorted.push(0);
+            }
+            *weights_sorted.last_mut().expect("pushed above") += 1;
+            of[i as usize] = firsts.len() as u32 - 1;
+        }
+        // Renumber the groups in order of first appearance.
+        let mut by_first: Vec<u32> = (0..firsts.len() as u32).collect();
+        by_first.sort_unstable_by_key(|&g| firsts[g as usize]);
+        let mut rank = vec![0u32; firsts.len()];
+        for (r, &g) in by_first.iter().enumerate() {
+            rank[g as usize] = r as u32;
+        }
+        for o in &mut of {
+            *o = rank[*o as usize];
+        }
+        Distinct {
+            points: by_first
+                .iter()
+                .map(|&g| positions[firsts[g as usize] as usize])
+                .collect(),
+            weights: by_first
+                .iter()
+                .map(|&g| weights_sorted[g as usize])
+                .collect(),
+            of,
+        }
+    }
+
+    /// Whether every position is distinct.
+    pub fn all_distinct(&self) -> bool {
+        self.points.len() == self.of.len()
+    }
+}
+
+#[cfg(test)]
+mod distinct_tests {
+    use super::*;
+
+    #[test]
+    fn groups_bit_equal_positions_in_order_of_first_appearance() {
+        let p = [
+            [1.0, 2.0, 3.0],
+            [0.0, 0.0, 0.0],
+            [1.0, 2.0, 3.0],
+            [-0.0, 0.0, 0.0],
+            [1.0, 2.0, 3.000001],
+        ];
+        let d = Distinct::of(&p);
+        assert_eq!(
+            d.points,
+            vec![[1.0, 2.0, 3.0], [0.0, 0.0, 0.0], [1.0, 2.0, 3.000001]]
+        );
+        assert_eq!(d.weights, vec![2, 2, 1]);
+        assert_eq!(d.of, vec![0, 1, 0, 1, 2]);
+        assert!(!d.all_distinct());
+        assert!(Distinct::of(&p[3..]).all_distinct());
+    }
 }

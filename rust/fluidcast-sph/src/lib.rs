@@ -11,7 +11,7 @@ mod kernel;
 mod particles;
 
 pub use field::{FieldKind, FieldSample};
-pub use grid::NeighbourGrid;
+pub use grid::{Distinct, NeighbourGrid};
 pub use kernel::Kernel;
 pub use particles::{
     suggest_support_radius, Component, ParticleError, ParticleSource, ParticleSpec, Particles,

@@ -408,7 +408,9 @@ pub fn far_outliers(points: &[[f64; 3]]) -> Vec<usize> {
 }
 
 /// Mean nearest-neighbour distance of (up to 4096 of) the finite points, world units; far
-/// outliers ([`far_outliers`]) do not count.
+/// outliers ([`far_outliers`]) do not count. Coincident points count once: the distance to
+/// the nearest *other* position, over the distinct positions ([`crate::Distinct`]), so that
+/// copies of a point neither shrink the spacing to 0 nor cost a query each.
 pub fn mean_spacing(points: &[[f64; 3]]) -> Option<f64> {
     spacing_without(points, &far_outliers(points))
 }
@@ -421,6 +423,7 @@ fn spacing_without(points: &[[f64; 3]], far: &[usize]) -> Option<f64> {
         .filter(|(i, p)| p.iter().all(|v| v.is_finite()) && far.binary_search(i).is_err())
         .map(|(_, p)| [p[0] as f32, p[1] as f32, p[2] as f32])
         .collect();
+    let pts = crate::Distinct::of(&pts).points;
     if pts.len() < 2 {
         return None;
     }
