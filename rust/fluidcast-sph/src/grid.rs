@@ -144,9 +144,10 @@ impl Distinct {
         for (k, &i) in order.iter().enumerate() {
             if k == 0 || key(i) != key(order[k - 1]) {
                 firsts.push(i);
-                weights_sorted.push(0);
+                weights_sorted.push(1);
+            } else if let Some(w) = weights_sorted.last_mut() {
+                *w += 1;
             }
-            *weights_sorted.last_mut().expect("pushed above") += 1;
             of[i as usize] = firsts.len() as u32 - 1;
         }
         // Renumber the groups in order of first appearance.
