@@ -299,6 +299,65 @@ std::string vtkFluidCastVolumeMapper::GetKernelName(int index)
 }
 
 //------------------------------------------------------------------------------
+std::string vtkFluidCastVolumeMapper::CheckSetting(const char* property, double value)
+{
+  try
+  {
+    fluidcast::check_setting(property ? property : "", value);
+    return std::string();
+  }
+  catch (const rust::Error& e)
+  {
+    return e.what();
+  }
+}
+
+//------------------------------------------------------------------------------
+bool vtkFluidCastVolumeMapper::AcceptSetting(const char* property, double value, double kept)
+{
+  const std::string why = CheckSetting(property, value);
+  if (why.empty())
+  {
+    return true;
+  }
+  vtkErrorMacro(<< why << "; " << property << " stays " << kept);
+  return false;
+}
+
+// The numeric setters: each value is checked by the library's table (CheckSetting) first.
+#define FLUIDCAST_CHECKED_SETTER(name, type)                                                     \
+  void vtkFluidCastVolumeMapper::Set##name(type value)                                         \
+  {                                                                                            \
+    if (this->name != value && this->AcceptSetting(#name, static_cast<double>(value),          \
+                                 static_cast<double>(this->name)))                             \
+    {                                                                                          \
+      this->name = value;                                                                      \
+      this->Modified();                                                                        \
+    }                                                                                          \
+  }
+FLUIDCAST_CHECKED_SETTER(SupportRadius, double)
+FLUIDCAST_CHECKED_SETTER(RadiusScale, double)
+FLUIDCAST_CHECKED_SETTER(ErrorTolerance, double)
+FLUIDCAST_CHECKED_SETTER(RBFRadius, double)
+FLUIDCAST_CHECKED_SETTER(SamplesPerPixel, int)
+FLUIDCAST_CHECKED_SETTER(ProgressivePasses, int)
+FLUIDCAST_CHECKED_SETTER(ShadowAmbient, double)
+FLUIDCAST_CHECKED_SETTER(MemoryLimit, double)
+FLUIDCAST_CHECKED_SETTER(LODTolerance, double)
+FLUIDCAST_CHECKED_SETTER(GridCell, int)
+FLUIDCAST_CHECKED_SETTER(Tiles, int)
+FLUIDCAST_CHECKED_SETTER(Relax, double)
+FLUIDCAST_CHECKED_SETTER(BundleSize, int)
+FLUIDCAST_CHECKED_SETTER(DepthSamples, int)
+FLUIDCAST_CHECKED_SETTER(SamplingScale, double)
+FLUIDCAST_CHECKED_SETTER(RBFSeed, int)
+FLUIDCAST_CHECKED_SETTER(RBFLeafSize, int)
+FLUIDCAST_CHECKED_SETTER(RBFStep, double)
+FLUIDCAST_CHECKED_SETTER(ShadowSamples, int)
+FLUIDCAST_CHECKED_SETTER(IsoSurfaceOpacity, double)
+#undef FLUIDCAST_CHECKED_SETTER
+
+//------------------------------------------------------------------------------
 namespace
 {
 std::string NameAt(const rust::Vec<rust::String>& names, int index)
@@ -356,9 +415,52 @@ int vtkFluidCastVolumeMapper::FillInputPortInformation(int, vtkInformation* info
 }
 
 //------------------------------------------------------------------------------
+namespace
+{
+/** `bounds` of `input` as VTK computed them, over its finite points only where a point has
+ * an infinite or NaN coordinate (the renderer skips those points); uninitialized when none
+ * is finite. */
+void FiniteBounds(vtkPointSet* input, double bounds[6])
+{
+  bool finite = true;
+  for (int k = 0; k < 6; ++k)
+  {
+    finite = finite && std::isfinite(bounds[k]);
+  }
+  if (finite || !input || !input->GetPoints())
+  {
+    if (!finite)
+    {
+      vtkMath::UninitializeBounds(bounds);
+    }
+    return;
+  }
+  vtkMath::UninitializeBounds(bounds);
+  vtkPoints* points = input->GetPoints();
+  bool any = false;
+  for (vtkIdType i = 0; i < points->GetNumberOfPoints(); ++i)
+  {
+    double x[3];
+    points->GetPoint(i, x);
+    if (!(std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2])))
+    {
+      continue;
+    }
+    for (int k = 0; k < 3; ++k)
+    {
+      bounds[2 * k] = any ? std::min(bounds[2 * k], x[k]) : x[k];
+      bounds[2 * k + 1] = any ? std::max(bounds[2 * k + 1], x[k]) : x[k];
+    }
+    any = true;
+  }
+}
+}
+
+//------------------------------------------------------------------------------
 double* vtkFluidCastVolumeMapper::GetBounds()
 {
   this->Superclass::GetBounds();
+  FiniteBounds(vtkPointSet::SafeDownCast(this->GetDataSetInput()), this->Bounds);
   if (vtkMath::AreBoundsInitialized(this->Bounds))
   {
     // The field reaches one support radius beyond the particles: the radius is known once
@@ -369,6 +471,7 @@ double* vtkFluidCastVolumeMapper::GetBounds()
       this->Upload(input);
     }
     double grow = this->SupportRadius > 0 ? this->SupportRadius : this->LastMaxRadius;
+    grow = std::isfinite(grow) ? grow : 0.0;
     for (int k = 0; k < 3; ++k)
     {
       this->Bounds[2 * k] -= grow;

@@ -65,7 +65,7 @@ public:
    * One support radius H for all particles, in world units. <= 0 (default): use RadiusArray,
    * else the field data "support_radius", else twice the mean particle spacing.
    */
-  vtkSetMacro(SupportRadius, double);
+  virtual void SetSupportRadius(double value);
   vtkGetMacro(SupportRadius, double);
   ///@}
 
@@ -76,7 +76,7 @@ public:
    */
   vtkSetStringMacro(RadiusArray);
   vtkGetStringMacro(RadiusArray);
-  vtkSetMacro(RadiusScale, double);
+  virtual void SetRadiusScale(double value);
   vtkGetMacro(RadiusScale, double);
   ///@}
 
@@ -92,6 +92,16 @@ public:
    * 3 wendland-c4, 4 poly6, 5 gaussian: ParaView's FluidCastKernel), "" past its end.
    */
   static std::string GetKernelName(int index);
+
+  /**
+   * Why `value` is refused for the numeric property `property` ("SupportRadius",
+   * "ErrorTolerance", ...; ParaView's "FluidCast" prefix may be given), or an empty string
+   * when it is taken. The library's one table of settings decides, as for the CLI's options
+   * and the Python package's arguments. Every numeric Set method below checks its value here:
+   * a refused value is reported as a VTK error naming the property and the mapper keeps the
+   * value it had, so one bad value (inf, NaN, a negative radius) never reaches a render.
+   */
+  static std::string CheckSetting(const char* property, double value);
   ///@}
 
   ///@{
@@ -128,18 +138,18 @@ public:
   vtkGetStringMacro(Field);
   vtkSetStringMacro(RBFClassification);
   vtkGetStringMacro(RBFClassification);
-  vtkSetMacro(RBFRadius, double);
+  virtual void SetRBFRadius(double value);
   vtkGetMacro(RBFRadius, double);
-  vtkSetClampMacro(SamplesPerPixel, int, 1, 1024);
+  virtual void SetSamplesPerPixel(int value);
   vtkGetMacro(SamplesPerPixel, int);
-  vtkSetClampMacro(ProgressivePasses, int, 1, 65536);
+  virtual void SetProgressivePasses(int value);
   vtkGetMacro(ProgressivePasses, int);
   vtkSetMacro(Shadows, vtkTypeBool);
   vtkGetMacro(Shadows, vtkTypeBool);
   vtkBooleanMacro(Shadows, vtkTypeBool);
   vtkSetVector3Macro(LightDirection, double);
   vtkGetVector3Macro(LightDirection, double);
-  vtkSetClampMacro(ShadowAmbient, double, 0.0, 1.0);
+  virtual void SetShadowAmbient(double value);
   vtkGetMacro(ShadowAmbient, double);
   /**
    * The RBF radius map: points (position on the colour map's range 0..1, radius factor >= 0),
@@ -157,7 +167,7 @@ public:
    * E_I (0..1, per channel) of full-rate sampling. Default 0.004 (about 1/255); <= 0 samples
    * every depth at full rate.
    */
-  vtkSetClampMacro(ErrorTolerance, double, 0.0, 0.5);
+  virtual void SetErrorTolerance(double value);
   vtkGetMacro(ErrorTolerance, double);
   ///@}
 
@@ -199,7 +209,7 @@ public:
    * within the plan's error). 0 (default): no limit. A limit too small for the image and a minimal tile is
    * an error (nothing is drawn).
    */
-  vtkSetClampMacro(MemoryLimit, double, 0.0, 1.0e9);
+  virtual void SetMemoryLimit(double value);
   vtkGetMacro(MemoryLimit, double);
   ///@}
 
@@ -213,7 +223,7 @@ public:
    * of particles); `fluidcast bench --lod` measures its speed and error. 0 (default): every
    * particle. Not with the RBF field or shadows, nor iso-surfaces of another array (errors).
    */
-  vtkSetClampMacro(LODTolerance, double, 0.0, 1.0e6);
+  virtual void SetLODTolerance(double value);
   vtkGetMacro(LODTolerance, double);
   ///@}
 
@@ -226,7 +236,7 @@ public:
    */
   vtkSetStringMacro(Mode);
   vtkGetStringMacro(Mode);
-  vtkSetClampMacro(GridCell, int, 1, 64);
+  virtual void SetGridCell(int value);
   vtkGetMacro(GridCell, int);
   static std::string GetModeName(int index);
   ///@}
@@ -257,7 +267,7 @@ public:
    * Render each view in at least this many screen tiles (the CLI's --tiles; the same image in
    * less memory). 0 (default): as MemoryLimit needs. GetLastTiles: the tiles of the last frame.
    */
-  vtkSetClampMacro(Tiles, int, 0, 65536);
+  virtual void SetTiles(int value);
   vtkGetMacro(Tiles, int);
   vtkGetMacro(LastTiles, vtkIdType);
   ///@}
@@ -279,27 +289,27 @@ public:
    * RBFStep: RBF: the step along each ray (world units); <= 0 (default): half the median particle's standard deviation over SamplingScale. fluidcast render --rbf-step.
    * ShadowSamples: RBF shadows: shadow rays per pixel and pass (1..1024). fluidcast render --shadow-samples.
    */
-  vtkSetClampMacro(Relax, double, 0.0, 1.0);
+  virtual void SetRelax(double value);
   vtkGetMacro(Relax, double);
   vtkSetMacro(Strict, vtkTypeBool);
   vtkGetMacro(Strict, vtkTypeBool);
   vtkBooleanMacro(Strict, vtkTypeBool);
-  vtkSetClampMacro(BundleSize, int, 1, 64);
+  virtual void SetBundleSize(int value);
   vtkGetMacro(BundleSize, int);
-  vtkSetClampMacro(DepthSamples, int, 1, 64);
+  virtual void SetDepthSamples(int value);
   vtkGetMacro(DepthSamples, int);
-  vtkSetClampMacro(SamplingScale, double, 1e-6, 1e6);
+  virtual void SetSamplingScale(double value);
   vtkGetMacro(SamplingScale, double);
   vtkSetMacro(OcclusionCulling, vtkTypeBool);
   vtkGetMacro(OcclusionCulling, vtkTypeBool);
   vtkBooleanMacro(OcclusionCulling, vtkTypeBool);
-  vtkSetClampMacro(RBFSeed, int, 0, 2147483647);
+  virtual void SetRBFSeed(int value);
   vtkGetMacro(RBFSeed, int);
-  vtkSetClampMacro(RBFLeafSize, int, 1, 64);
+  virtual void SetRBFLeafSize(int value);
   vtkGetMacro(RBFLeafSize, int);
-  vtkSetMacro(RBFStep, double);
+  virtual void SetRBFStep(double value);
   vtkGetMacro(RBFStep, double);
-  vtkSetClampMacro(ShadowSamples, int, 1, 1024);
+  virtual void SetShadowSamples(int value);
   vtkGetMacro(ShadowSamples, int);
   vtkSetStringMacro(RBFNoise);
   vtkGetStringMacro(RBFNoise);
@@ -341,7 +351,7 @@ public:
   void SetBlendModeToIsoSurface() { this->SetBlendMode(vtkVolumeMapper::ISOSURFACE_BLEND); }
   vtkSetStringMacro(IsoSurfaceField);
   vtkGetStringMacro(IsoSurfaceField);
-  vtkSetClampMacro(IsoSurfaceOpacity, double, 0.0, 1.0);
+  virtual void SetIsoSurfaceOpacity(double value);
   vtkGetMacro(IsoSurfaceOpacity, double);
   vtkSetMacro(IsoSurfaceWithVolume, vtkTypeBool);
   vtkGetMacro(IsoSurfaceWithVolume, vtkTypeBool);
@@ -447,8 +457,9 @@ public:
   int UpdateParticles();
 
   /**
-   * Bounds of the input grown by the particles' support radius (the extent of the field),
-   * cut to CroppingRegionPlanes when Cropping is on.
+   * Bounds of the input's finite points grown by the particles' support radius (the extent
+   * of the field), cut to CroppingRegionPlanes when Cropping is on. Always finite, or
+   * uninitialized when no point is finite: a view's ResetCamera never sees inf or NaN.
    */
   double* GetBounds() override;
   void GetBounds(double bounds[6]) override { this->Superclass::GetBounds(bounds); }
@@ -458,6 +469,8 @@ public:
 
 protected:
   vtkFluidCastVolumeMapper();
+  /** CheckSetting, with a refusal reported as an error that names what is kept. */
+  bool AcceptSetting(const char* property, double value, double kept);
   ~vtkFluidCastVolumeMapper() override;
 
   int FillInputPortInformation(int port, vtkInformation* info) override;

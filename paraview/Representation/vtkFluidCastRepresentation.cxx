@@ -258,6 +258,12 @@ void vtkFluidCastRepresentation::SetNumberOfIsosurfaces(int n)
 
 void vtkFluidCastRepresentation::SetIsosurfaceValue(int i, double value)
 {
+  const std::string why = vtkFluidCastVolumeMapper::CheckSetting("IsoValue", value);
+  if (!why.empty())
+  {
+    vtkErrorMacro(<< "FluidCastIsosurfaceValues[" << i << "]: " << why);
+    return;
+  }
   this->Property->GetIsoSurfaceValues()->SetValue(i, value);
   this->Mapper->SetBlendMode(vtkVolumeMapper::ISOSURFACE_BLEND);
 }

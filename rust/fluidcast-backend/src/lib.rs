@@ -22,11 +22,13 @@ mod frame;
 mod march;
 mod plan;
 mod scene;
+pub mod settings;
 
 pub use frame::{tile_particles, Rendered};
 
 pub use plan::{March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES};
 pub use scene::{LodReport, Scene};
+pub use settings::{check_property, Setting, SettingError, SETTINGS};
 
 pub use fluidcast_gpu::{list_adapters, AdapterChoice, Gpu, GpuError, ADAPTER_ENV};
 /// What a plan is made of, from the crates that draw it: front-ends name these here.

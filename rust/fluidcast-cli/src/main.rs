@@ -15,6 +15,7 @@ macro_rules! out {
 mod bench;
 mod bench_lod;
 mod bench_rbf;
+mod checked;
 mod info;
 mod lod;
 mod options;

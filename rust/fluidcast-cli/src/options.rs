@@ -1,6 +1,6 @@
 //! Options shared by `render` and `probe`: how particles are built from a file.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use fluidcast_sph::{FieldKind, Kernel, ParticleSpec, Quantity, RadiusSource, VolumeSource};
 
 #[derive(clap::Args, Debug, Clone)]
@@ -19,14 +19,16 @@ pub struct ParticleArgs {
     #[arg(long)]
     pub field: Option<String>,
     /// One support radius H for all particles (world units; the kernel is 0 beyond H).
-    #[arg(long, conflicts_with = "radius_array", allow_hyphen_values = true)]
+    #[arg(long, conflicts_with = "radius_array", allow_hyphen_values = true,
+          value_parser = crate::checked::real("--support-radius"))]
     pub support_radius: Option<f64>,
     /// Per-particle radius array; H = value × --radius-scale.
     #[arg(long)]
     pub radius_array: Option<String>,
     /// Factor from --radius-array to the support radius (2 for a smoothing length h with a
     /// cubic or Wendland kernel).
-    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true,
+          value_parser = crate::checked::real("--radius-scale"))]
     pub radius_scale: f64,
     /// Mass array (with --density-array: V = m/ρ).
     #[arg(long, requires = "density_array")]
@@ -48,23 +50,14 @@ impl ParticleArgs {
             Some(a) => Some(a.parse::<Quantity>().map_err(anyhow::Error::msg)?),
             None => None,
         };
-        if let Some(h) = self.support_radius {
-            if !(h.is_finite() && h > 0.0) {
-                bail!("--support-radius {h}: must be finite and > 0");
-            }
-        }
-        if !(self.radius_scale.is_finite() && self.radius_scale > 0.0) {
-            bail!(
-                "--radius-scale {}: must be finite and > 0",
-                self.radius_scale
-            );
-        }
         let radius = match (&self.radius_array, self.support_radius) {
             (Some(n), _) => RadiusSource::Array {
                 name: n.clone(),
                 scale: self.radius_scale,
             },
-            (None, Some(h)) => RadiusSource::Constant(h),
+            // 0, as in the mapper's SupportRadius: from the data.
+            (None, Some(h)) if h > 0.0 => RadiusSource::Constant(h),
+            (None, Some(_)) => RadiusSource::Auto,
             (None, None) => RadiusSource::Auto,
         };
         let volume = match (&self.mass_array, &self.density_array, &self.volume_array) {

@@ -30,7 +30,7 @@ pub struct RbfArgs {
     /// --field rbf: the radius (world units) of every particle at radius-map factor 1, where
     /// its truncated Gaussian ends (3 standard deviations). Default: each particle's support
     /// radius (see --support-radius, --radius-array).
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = crate::checked::real("--rbf-radius"))]
     pub rbf_radius: Option<f64>,
     /// --field rbf: the radius map, pairs of position on the colour map's range (0..1) and
     /// radius factor, e.g. 0,1,1,0.5; a factor of 0 hides particles. Default: 1 everywhere.
@@ -43,7 +43,7 @@ pub struct RbfArgs {
     pub classification: Classification,
     /// --field rbf: jittered passes averaged per pixel (progressive accumulation; noise falls
     /// as 1/√N).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, default_value_t = 1, value_parser = crate::checked::whole::<u32>("--spp"))]
     pub spp: u32,
     /// --field rbf: the jitter's noise: blue (a 64x64 blue-noise mask over the screen, a
     /// golden-ratio sequence over passes: finer grain, faster convergence) or white
@@ -51,14 +51,15 @@ pub struct RbfArgs {
     #[arg(long, value_enum, default_value = "blue")]
     pub noise: NoiseArg,
     /// --field rbf: seed of the per-pixel jitter.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = crate::checked::whole::<u32>("--seed"))]
     pub seed: u32,
     /// --field rbf: particles per BVH leaf (the paper's Hilbert clusters; 1..=64).
-    #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
+    #[arg(long, default_value_t = DEFAULT_LEAF_SIZE,
+          value_parser = crate::checked::whole::<usize>("--leaf-size"))]
     pub leaf_size: usize,
     /// --field rbf: the step along each ray (world units). Default: half the median
     /// particle's standard deviation (radius/3), over --sampling-scale.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = crate::checked::real("--rbf-step"))]
     pub rbf_step: Option<f64>,
     /// --field rbf, or any SPH field (drawn then by the same stochastic ray marcher, on the
     /// CPU): single scattering with volumetric shadows toward a directional light
@@ -69,11 +70,11 @@ pub struct RbfArgs {
     #[arg(long)]
     pub shadows: bool,
     /// --shadows: shadow rays per pixel and pass.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    #[arg(long, default_value_t = 1, value_parser = crate::checked::whole::<u32>("--shadow-samples"))]
     pub shadow_samples: u32,
     /// --shadows: the light a fully shadowed point still receives, as a share of the full
     /// light (0..1).
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25, value_parser = crate::checked::real("--shadow-ambient"))]
     pub shadow_ambient: f64,
 }
 
@@ -93,7 +94,8 @@ impl RbfArgs {
             (true, Classification::Pre) => Colouring::Pre,
         };
         Ok(RbfOptions {
-            radius: self.rbf_radius,
+            // 0, as the mapper's RBFRadius: the support radius.
+            radius: self.rbf_radius.filter(|&r| r > 0.0),
             radius_map,
             colouring,
             leaf_size: self.leaf_size,
@@ -103,11 +105,6 @@ impl RbfArgs {
     /// The march's parameters; with --shadows the light is `light` (--light, X,Y,Z toward
     /// it) or comes from `camera`.
     pub fn render_params(&self, camera: &Camera, light: Option<&str>) -> Result<RbfRenderParams> {
-        if let Some(s) = self.rbf_step {
-            if !(s.is_finite() && s > 0.0) {
-                bail!("--rbf-step {s}: must be finite and > 0 (world units)");
-            }
-        }
         let shadows = if self.shadows {
             let light = match light {
                 Some(l) => parse_vector(l).context("--light")?,
@@ -123,7 +120,8 @@ impl RbfArgs {
             spp: self.spp,
             first_pass: 0,
             seed: self.seed,
-            step: self.rbf_step,
+            // 0, as the mapper's RBFStep: automatic.
+            step: self.rbf_step.filter(|&s| s > 0.0),
             shadows,
             noise: match self.noise {
                 NoiseArg::Blue => Noise::Blue,

@@ -69,7 +69,7 @@ pub struct RenderArgs {
     /// most this many pixels at its depth (0: every particle). It pays where particles are
     /// about a pixel or smaller; `fluidcast bench --lod` reports its speed and error against
     /// full detail.
-    #[arg(long, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true, value_parser = crate::checked::real("--lod"))]
     lod: Option<f64>,
 }
 

@@ -12,7 +12,8 @@ pub struct SurfaceArgs {
     /// Draw iso-surfaces at these values of --iso-field (comma-separated), e.g. `--iso 0.5`
     /// for the free surface. Rendered on the CPU by the reference ray caster (the default
     /// --mode with --iso); the adaptive and GPU renderers do not draw surfaces yet.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
+          value_parser = crate::checked::real("--iso"))]
     pub iso: Vec<f64>,
     /// The field whose levels --iso draws: `colour` (Σ V W with V = m/ρ: about 1 inside the
     /// fluid and 0 outside, so 0.5 is the free surface), `density` (Σ m W), or a point array
@@ -20,7 +21,7 @@ pub struct SurfaceArgs {
     #[arg(long, default_value = "colour")]
     pub iso_field: String,
     /// Opacity of the surfaces, in (0, 1] (1 hides everything behind the first one).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::checked::real("--iso-opacity"))]
     pub iso_opacity: f64,
     /// A solid surface colour r,g,b (0..1). Default: the colour map's colour of the rendered
     /// array (--array, else the density) at each surface point.

@@ -44,13 +44,14 @@ pub struct ViewArgs {
     range: Option<String>,
     /// Distance (world units) over which the transfer function's opacity applies, as
     /// ParaView's Scalar Opacity Unit Distance. Default: bounds diagonal / cbrt(particles).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true,
+          value_parser = crate::checked::real("--opacity-unit-distance"))]
     opacity_unit_distance: Option<f64>,
     /// Multiply the transfer function's opacities.
     #[arg(long, default_value_t = 1.0)]
     opacity_scale: f64,
     /// Depth samples per pixel footprint (1 = the depth step equals the pixel footprint).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = crate::checked::real("--sampling-scale"))]
     sampling_scale: f64,
 }
 
@@ -89,7 +90,8 @@ pub struct SamplingArgs {
     pub error_tolerance: String,
     /// Relaxation E_relax in [0, 1] (1: ignore the lateral variation inside cells when
     /// estimating errors; 0: strict bound).
-    #[arg(long, default_value_t = 1.0, conflicts_with = "strict")]
+    #[arg(long, default_value_t = 1.0, conflicts_with = "strict",
+          value_parser = crate::checked::real("--relax"))]
     pub relax: f64,
     /// Never render cells as super-pixels.
     #[arg(long)]
@@ -106,10 +108,11 @@ pub struct SamplingArgs {
     #[arg(long)]
     pub no_surface_cells: bool,
     /// Ray bundle size D_xy in pixels (1..=64).
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = crate::checked::whole::<u32>("--bundle"))]
     pub bundle: u32,
     /// Depth samples per cell D_z (a power of two, 1..=64).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16,
+          value_parser = crate::checked::whole::<u32>("--depth-samples"))]
     pub depth_samples: u32,
     /// Strict error bound: no relaxation and no super-pixels, so no pixel differs from the
     /// full-rate rendering by more than E_I.
@@ -117,7 +120,7 @@ pub struct SamplingArgs {
     pub strict: bool,
     /// --mode perspective-grid: pixels per grid column along each side (1 = a column per
     /// pixel, the reference's samples; 2 casts a quarter of the columns and interpolates).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::checked::whole::<u32>("--grid-cell"))]
     pub grid_cell: u32,
     /// --mode perspective-grid: resample every tile of columns in every slab, also behind
     /// pixels that have stopped (the same image, slower: for measuring occlusion culling).
@@ -133,9 +136,10 @@ pub fn parse_tolerance(s: &str) -> Result<Option<f64>> {
     let e: f64 = s.trim().parse().with_context(|| {
         format!("--error-tolerance '{s}': expected a number in [0, 1] or 'off'")
     })?;
-    if !(0.0..=1.0).contains(&e) {
-        bail!("--error-tolerance {e}: must be in [0, 1] (or 'off')");
-    }
+    fluidcast_backend::Setting::by_flag("--error-tolerance")
+        .map(|setting| setting.check(e))
+        .transpose()
+        .map_err(|err| anyhow::anyhow!("--error-tolerance: {err} (or 'off')"))?;
     Ok(Some(e))
 }
 
@@ -154,20 +158,11 @@ impl SamplingArgs {
     /// Render parameters for an image size and the particle options.
     pub fn params(&self, v: &ViewArgs, p: &ParticleArgs) -> Result<RenderParams> {
         let (width, height) = parse_size(&v.size)?;
-        if !(0.0..=1.0).contains(&self.relax) {
-            bail!("--relax {}: must be in [0, 1]", self.relax);
-        }
         let grid = GridParams {
             bundle: self.bundle,
             depth_samples: self.depth_samples,
         };
         grid.validate().context("--bundle/--depth-samples")?;
-        if !(v.sampling_scale.is_finite() && v.sampling_scale > 0.0) {
-            bail!(
-                "--sampling-scale {}: must be finite and > 0",
-                v.sampling_scale
-            );
-        }
         let mut adaptive = PlanParams {
             tolerance: parse_tolerance(&self.error_tolerance)?,
             relax: self.relax,
@@ -263,8 +258,8 @@ impl ViewArgs {
         };
         tf = tf.with_range(lo, hi)?;
         tf.unit_distance = match a.opacity_unit_distance {
-            Some(u) if u.is_finite() && u > 0.0 => u,
-            Some(u) => bail!("--opacity-unit-distance {u}: must be finite and > 0"),
+            // Checked while parsing (crate::checked).
+            Some(u) => u,
             None => {
                 let (lo, hi) = particles.support_bounds();
                 let diag = (0..3)

@@ -98,10 +98,21 @@ fn bad_adaptive_options_are_clear_errors() {
     let s = sample();
     let o = d.path().join("o.png");
     for (extra, msg) in [
-        (vec!["--error-tolerance", "2"], "must be in [0, 1]"),
+        (
+            vec!["--error-tolerance", "2"],
+            "must be a number >= 0 and <= 1",
+        ),
         (vec!["--error-tolerance", "fast"], "expected a number"),
         (vec!["--depth-samples", "12"], "power of two"),
-        (vec!["--bundle", "0"], "bundle size"),
+        (
+            vec!["--bundle", "0"],
+            "'--bundle <BUNDLE>': must be a whole number 1..=64",
+        ),
+        (
+            vec!["--support-radius", "inf"],
+            "must be a number >= 0 and finite",
+        ),
+        (vec!["--support-radius", "-1"], "not -1"),
         (vec!["--relax", "1.5"], "--relax"),
     ] {
         let mut args = vec![

@@ -52,8 +52,11 @@ fn lod_refuses_what_it_cannot_do() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.png");
     for (extra, says) in [
-        (&["--lod", "-1"][..], "not a finite number of pixels"),
-        (&["--lod", "nan"][..], "not a finite number of pixels"),
+        (
+            &["--lod", "-1"][..],
+            "must be a number >= 0 and <= 1000000 (pixels",
+        ),
+        (&["--lod", "nan"][..], "not NaN"),
         (
             &["--lod", "2", "--field", "rbf"][..],
             "own cluster hierarchy",

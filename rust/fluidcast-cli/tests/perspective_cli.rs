@@ -66,9 +66,9 @@ fn perspective_grid_mode_renders_as_the_reference() {
     let (code, err) = render(&["--mode", "perspective-grid", "--grid-cell", "3"], &out);
     assert_eq!(code, Some(0), "{err}");
     let (code, err) = render(&["--mode", "perspective-grid", "--grid-cell", "0"], &out);
-    assert_eq!(code, Some(1));
+    assert_eq!(code, Some(2), "a usage error, as clap's");
     assert!(
-        err.contains("perspective grid cell 0 pixels: must be 1..=64"),
+        err.contains("'--grid-cell <GRID_CELL>': must be a whole number 1..=64 (pixels), not 0"),
         "{err}"
     );
     let (code, err) = render(&["--mode", "perspective-grid", "--backend", "gpu"], &out);

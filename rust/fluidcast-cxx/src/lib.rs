@@ -263,6 +263,10 @@ mod ffi {
         /// The kernel names `Settings::kernel` takes, in the order of ParaView's
         /// `FluidCastKernel` (cubic, quintic, wendland-c2, wendland-c4, poly6, gaussian).
         fn kernel_names() -> Vec<String>;
+        /// Refuses `value` for the mapper/ParaView property `property` (SupportRadius,
+        /// ErrorTolerance, ...) where the library's one table of settings does: the error
+        /// says what the property takes. The mapper's setters call it.
+        fn check_setting(property: &str, value: f64) -> Result<()>;
 
         /// The renderer: holds the particle data, settings, camera and transfer function,
         /// and the opened backend (a GPU device lives as long as the renderer).
@@ -355,6 +359,12 @@ struct OpenBackend {
     backend: Backend,
     adapter: String,
     renderer: fluidcast_backend::Renderer,
+}
+
+fn check_setting(property: &str, value: f64) -> Result<(), String> {
+    guarded("check_setting", || {
+        fluidcast_backend::check_property(property, value).map_err(|e| e.to_string())
+    })
 }
 
 fn kernel_names() -> Vec<String> {
