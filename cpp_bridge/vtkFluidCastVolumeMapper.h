@@ -62,8 +62,9 @@ public:
 
   ///@{
   /**
-   * One support radius H for all particles, in world units. <= 0 (default): use RadiusArray,
-   * else the field data "support_radius", else twice the mean particle spacing.
+   * One support radius H for all particles, in world units. 0 (default): use RadiusArray,
+   * else the field data "support_radius", else twice the mean particle spacing. Negative,
+   * infinite or NaN values are refused (see CheckSetting).
    */
   virtual void SetSupportRadius(double value);
   vtkGetMacro(SupportRadius, double);
@@ -72,7 +73,7 @@ public:
   ///@{
   /**
    * Point array holding a per-particle radius (e.g. a smoothing length h); H = RadiusScale x
-   * value. Used when SupportRadius <= 0. Empty/null: none.
+   * value. Used when SupportRadius is 0. Empty/null: none.
    */
   vtkSetStringMacro(RadiusArray);
   vtkGetStringMacro(RadiusArray);
@@ -164,7 +165,7 @@ public:
   ///@{
   /**
    * Screen-space error tolerance E_I: the adaptive renderer keeps each pixel within about
-   * E_I (0..1, per channel) of full-rate sampling. Default 0.004 (about 1/255); <= 0 samples
+   * E_I (0..1, per channel) of full-rate sampling. Default 0.004 (about 1/255); 0 samples
    * every depth at full rate.
    */
   virtual void SetErrorTolerance(double value);

@@ -78,6 +78,21 @@ def read(path: str | Path) -> pv.PolyData:
     return pv.wrap(reader.GetOutput())
 
 
+def _checked(argument: str, prop: str, value) -> float:
+    """``value`` for the argument ``argument`` (the mapper's property ``prop``), as a float,
+    checked by fluidcast's one table of settings (the mapper's ``CheckSetting``, as the CLI
+    and ParaView check it); a ``ValueError`` naming the argument otherwise."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"fluidcast.add_particles: {argument} must be a number, "
+                         f"not {value!r}") from None
+    why = vtkFluidCastVolumeMapper.CheckSetting(prop, v)
+    if why:
+        raise ValueError(f"fluidcast.add_particles: {argument}: {why}")
+    return v
+
+
 def _point_set(particles) -> pv.DataSet:
     if isinstance(particles, (str, Path)):
         return read(particles)
@@ -107,12 +122,25 @@ def _scalars(mesh: pv.DataSet, scalars) -> tuple[pv.DataSet, str]:
                              f"'{scalars}'{where}; point arrays: {_names(mesh)}")
         return mesh, scalars
     values = np.asarray(scalars)
-    if values.shape[0] != mesh.n_points:
-        raise ValueError(f"fluidcast.add_particles: {values.shape[0]} scalars for "
+    if values.ndim == 0 or values.shape[0] != mesh.n_points:
+        count = values.shape[0] if values.ndim else 1
+        raise ValueError(f"fluidcast.add_particles: scalars: {count} values for "
                          f"{mesh.n_points} particles")
+    _check_scalars(values, "scalars")
     mesh = mesh.copy(deep=False)
     mesh.point_data["Data"] = values
     return mesh, "Data"
+
+
+def _check_scalars(values: np.ndarray, argument: str):
+    """Refuses what the mapper cannot render: complex, text or object values, and arrays of
+    more than one value per component (shape (N, 2, 2))."""
+    if values.dtype.kind not in "biuf":
+        raise ValueError(f"fluidcast.add_particles: {argument}: values of type {values.dtype} "
+                         "(real numbers, integers or booleans only)")
+    if values.ndim > 2:
+        raise ValueError(f"fluidcast.add_particles: {argument}: shape {values.shape}; one "
+                         "value or one vector per particle, (N,) or (N, components)")
 
 
 def _names(mesh: pv.DataSet) -> str:
@@ -141,7 +169,14 @@ def _clim(values: np.ndarray, clim) -> tuple[float, float]:
         clim = (float(finite.min()), float(finite.max()))
     elif np.isscalar(clim):
         clim = (-float(clim), float(clim))
-    lo, hi = map(float, clim)
+    try:
+        lo, hi = map(float, clim)
+    except (TypeError, ValueError):
+        raise ValueError(f"fluidcast.add_particles: clim must be two numbers, not {clim!r}") \
+            from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+        raise ValueError(f"fluidcast.add_particles: clim must be two finite numbers, low <= "
+                         f"high, not {clim!r}")
     if not lo < hi:
         hi = lo + max(abs(lo), 1.0) * 1e-6  # a constant field: one colour, as pyvista
     return lo, hi
@@ -187,20 +222,40 @@ def _configure(mapper, mesh, name, values, component, support_radius, radius_arr
                          f"(one of {', '.join(kernels())})")
     mapper.SetKernel(kernel)
     if support_radius is not None:
-        if not (np.isfinite(support_radius) and support_radius > 0):
-            raise ValueError(f"fluidcast.add_particles: support_radius must be a positive "
-                             f"length, not {support_radius}")
-        mapper.SetSupportRadius(support_radius)
+        mapper.SetSupportRadius(_checked("support_radius", "SupportRadius", support_radius))
     if radius_array is not None:
         mapper.SetRadiusArray(radius_array)
-    mapper.SetRadiusScale(radius_scale)
-    mapper.SetErrorTolerance(error_tolerance)
+    mapper.SetRadiusScale(_checked("radius_scale", "RadiusScale", radius_scale))
+    mapper.SetErrorTolerance(_checked("error_tolerance", "ErrorTolerance", error_tolerance))
     if backend not in BACKENDS:
         raise ValueError(f"fluidcast.add_particles: unknown backend '{backend}' "
                          f"(one of {', '.join(BACKENDS)})")
     mapper.SetBackend(BACKENDS[backend])
     if adapter is not None:
         mapper.SetAdapter(adapter)
+
+
+def _isosurfaces(isosurfaces) -> list[float]:
+    if isosurfaces is None:
+        return []
+    try:
+        values = np.atleast_1d(np.asarray(isosurfaces, dtype=float))
+    except (TypeError, ValueError):
+        raise ValueError(f"fluidcast.add_particles: isosurfaces must be numbers, not "
+                         f"{isosurfaces!r}") from None
+    if values.ndim != 1:
+        raise ValueError(f"fluidcast.add_particles: isosurfaces must be a list of values, not "
+                         f"of shape {values.shape}")
+    return [_checked("isosurfaces", "IsoValue", v) for v in values]
+
+
+def _default_unit_distance(mesh: pv.DataSet) -> float:
+    """The CLI's default: the diagonal of the finite points' bounds over cbrt(their count)."""
+    points = np.asarray(mesh.points, dtype=float)
+    finite = points[np.isfinite(points).all(axis=1)]
+    diagonal = float(np.linalg.norm(finite.max(axis=0) - finite.min(axis=0))) \
+        if len(finite) else 0.0
+    return diagonal / np.cbrt(len(finite)) if diagonal > 0 else 1.0
 
 
 def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: int | None = None,
@@ -253,13 +308,22 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
       CPU (the mapper's iso-surface blend mode and the property's iso values, as VTK's GPU
       mapper takes them).
 
-    Bad input (no points, a missing array, NaN radii, ...) raises ``ValueError`` with the
-    mapper's message and adds nothing; the mapper reports later problems (data changed to
-    something it cannot render) as VTK errors and draws nothing.
+    Bad input (no points, a missing array, NaN radii, ...) and bad arguments (NaN, inf, a
+    negative radius, complex scalars, ...; the same table of settings as the CLI and ParaView
+    decides) raise ``ValueError`` naming the argument, and add nothing; the mapper reports
+    later problems (data changed to something it cannot render) as VTK errors and draws
+    nothing.
     """
     mesh = _point_set(particles)
     mesh, name_ = _scalars(mesh, scalars)
     values = np.asarray(mesh.point_data[name_])
+    _check_scalars(values, f"point array '{name_}'")
+    iso = _isosurfaces(isosurfaces)
+    if opacity_unit_distance is not None:
+        opacity_unit_distance = _checked("opacity_unit_distance", "ScalarOpacityUnitDistance",
+                                         opacity_unit_distance)
+    isosurface_opacity = _checked("isosurface_opacity", "IsoSurfaceOpacity",
+                                  isosurface_opacity)
     clim = _clim(_rendered_values(values, component), clim)
     lut = _lookup_table(plotter, cmap, n_colors, flip_scalars, opacity, clim)
 
@@ -277,7 +341,7 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
     prop.SetColor(ctf)
     prop.SetScalarOpacity(otf)
     if opacity_unit_distance is None:
-        opacity_unit_distance = mesh.length / np.cbrt(mesh.n_points)
+        opacity_unit_distance = _default_unit_distance(mesh)
     prop.SetScalarOpacityUnitDistance(opacity_unit_distance)
     prop.SetInterpolationTypeToLinear()
     prop.SetShade(bool(shade))
@@ -285,9 +349,9 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
     prop.SetDiffuse(diffuse)
     prop.SetSpecular(specular)
     prop.SetSpecularPower(specular_power)
-    if isosurfaces is not None and len(isosurfaces) > 0:
-        for i, v in enumerate(np.atleast_1d(np.asarray(isosurfaces, dtype=float))):
-            prop.GetIsoSurfaceValues().SetValue(i, float(v))
+    if iso:
+        for i, v in enumerate(iso):
+            prop.GetIsoSurfaceValues().SetValue(i, v)
         mapper.SetBlendModeToIsoSurface()
         mapper.SetIsoSurfaceField(isosurface_field)
         mapper.SetIsoSurfaceOpacity(isosurface_opacity)

@@ -39,6 +39,12 @@ pub enum Domain {
         /// Whether `lo` itself is refused.
         open_low: bool,
     },
+    /// A length in world units that single precision holds: within
+    /// [`f32::MIN_POSITIVE`, `f32::MAX`], or 0 when `zero` (the setting's automatic value).
+    Length {
+        /// Whether 0 is taken.
+        zero: bool,
+    },
     /// A whole number in `[lo, hi]`; a power of two when `pow2`.
     Int {
         /// Smallest value.
@@ -101,7 +107,7 @@ pub const SETTINGS: &[Setting] = &[
         property: "SupportRadius",
         flag: "--support-radius",
         python: "support_radius",
-        domain: real(0.0, F32_MAX),
+        domain: Domain::Length { zero: true },
         meaning: "world units; 0: from the data",
     },
     Setting {
@@ -211,14 +217,14 @@ pub const SETTINGS: &[Setting] = &[
         property: "RBFRadius",
         flag: "--rbf-radius",
         python: "",
-        domain: real(0.0, F32_MAX),
+        domain: Domain::Length { zero: true },
         meaning: "world units; 0: the support radius",
     },
     Setting {
         property: "RBFStep",
         flag: "--rbf-step",
         python: "",
-        domain: real(0.0, F32_MAX),
+        domain: Domain::Length { zero: true },
         meaning: "world units; 0: automatic",
     },
     Setting {
@@ -253,7 +259,7 @@ pub const SETTINGS: &[Setting] = &[
         property: "ScalarOpacityUnitDistance",
         flag: "--opacity-unit-distance",
         python: "opacity_unit_distance",
-        domain: positive(F32_MAX),
+        domain: Domain::Length { zero: false },
         meaning: "world units over which the opacity applies",
     },
 ];
@@ -265,13 +271,22 @@ pub enum SettingError {
     #[error("no setting '{0}' (settings: {1})")]
     Unknown(String, String),
     /// The value is outside the setting's domain.
-    #[error("{rule}, not {value}")]
+    #[error("{rule}, not {}", show(*value))]
     Refused {
         /// The value as given.
         value: f64,
         /// What the setting takes, with its units.
         rule: String,
     },
+}
+
+/// A value as users typed it: `1e-40`, not forty zeros.
+fn show(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 impl fmt::Display for Domain {
@@ -289,6 +304,15 @@ impl fmt::Display for Domain {
                 } else {
                     write!(f, "a number {low}{lo} and {hi}")
                 }
+            }
+            Domain::Length { zero } => {
+                let zero = if zero { "0 or " } else { "" };
+                write!(
+                    f,
+                    "{zero}a length from {:e} to {:e}",
+                    f32::MIN_POSITIVE,
+                    f32::MAX
+                )
             }
             Domain::Int { lo, hi, pow2 } => {
                 let two = if pow2 {
@@ -308,6 +332,9 @@ impl Domain {
         match *self {
             Domain::Real { lo, hi, open_low } => {
                 v.is_finite() && v <= hi && (v > lo || (!open_low && v == lo))
+            }
+            Domain::Length { zero } => {
+                (zero && v == 0.0) || (f64::from(f32::MIN_POSITIVE)..=F32_MAX).contains(&v)
             }
             Domain::Int { lo, hi, pow2 } => {
                 v.is_finite()
@@ -381,7 +408,7 @@ mod tests {
     fn domains_take_their_ends_and_refuse_beyond() {
         let h = Setting::by_property("FluidCastSupportRadius").unwrap();
         assert!(h.check(0.0).is_ok() && h.check(0.1).is_ok());
-        assert!(h.check(-1.0).is_err() && h.check(1e39).is_err());
+        assert!(h.check(-1.0).is_err() && h.check(1e39).is_err() && h.check(1e-40).is_err());
         let scale = Setting::by_property("radiusscale").unwrap();
         assert!(scale.check(0.0).is_err() && scale.check(1e-30).is_ok());
         let e = Setting::by_property("ErrorTolerance").unwrap();
@@ -398,7 +425,8 @@ mod tests {
         let e = check_property("SupportRadius", f64::INFINITY).unwrap_err();
         assert_eq!(
             e.to_string(),
-            "SupportRadius must be a number >= 0 and finite (world units; 0: from the data), not inf"
+            "SupportRadius must be 0 or a length from 1.1754944e-38 to 3.4028235e38 (world \
+             units; 0: from the data), not inf"
         );
         let e = check_property("Nonsense", 1.0).unwrap_err().to_string();
         assert!(e.contains("Nonsense") && e.contains("SupportRadius"), "{e}");

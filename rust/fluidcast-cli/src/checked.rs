@@ -58,7 +58,7 @@ mod tests {
     fn refusals_say_what_the_option_takes() {
         let e = real("--support-radius")("inf").unwrap_err();
         assert!(
-            e.contains("must be a number >= 0") && e.ends_with("not inf"),
+            e.contains("must be 0 or a length") && e.ends_with("not inf"),
             "{e}"
         );
         assert_eq!(real("--support-radius")("0.5"), Ok(0.5));

@@ -108,10 +108,7 @@ fn bad_adaptive_options_are_clear_errors() {
             vec!["--bundle", "0"],
             "'--bundle <BUNDLE>': must be a whole number 1..=64",
         ),
-        (
-            vec!["--support-radius", "inf"],
-            "must be a number >= 0 and finite",
-        ),
+        (vec!["--support-radius", "inf"], "must be 0 or a length"),
         (vec!["--support-radius", "-1"], "not -1"),
         (vec!["--relax", "1.5"], "--relax"),
     ] {

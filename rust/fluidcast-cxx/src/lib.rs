@@ -361,6 +361,36 @@ struct OpenBackend {
     renderer: fluidcast_backend::Renderer,
 }
 
+/// Every numeric setting of `s` by the library's table, as the mapper's setters checked them
+/// (a caller of the bridge other than the mapper gets the same refusals).
+fn check_settings(s: &ffi::Settings) -> Result<(), String> {
+    let values = [
+        ("SupportRadius", s.support_radius),
+        ("RadiusScale", s.radius_scale),
+        ("ErrorTolerance", s.error_tolerance),
+        ("MemoryLimit", s.memory_limit_mib),
+        ("LODTolerance", s.lod_tolerance),
+        ("RBFRadius", s.rbf_radius),
+        ("SamplesPerPixel", f64::from(s.samples_per_pixel)),
+        ("ProgressivePasses", f64::from(s.progressive_passes)),
+        ("ShadowAmbient", s.shadow_ambient),
+        ("GridCell", f64::from(s.grid_cell)),
+        ("Tiles", f64::from(s.tiles)),
+        ("Relax", s.relax),
+        ("BundleSize", f64::from(s.bundle)),
+        ("DepthSamples", f64::from(s.depth_samples)),
+        ("SamplingScale", s.sampling_scale),
+        ("RBFSeed", f64::from(s.rbf_seed)),
+        ("RBFLeafSize", f64::from(s.rbf_leaf_size)),
+        ("RBFStep", s.rbf_step),
+        ("ShadowSamples", f64::from(s.shadow_samples)),
+    ];
+    for (property, v) in values {
+        fluidcast_backend::check_property(property, v).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
 fn check_setting(property: &str, value: f64) -> Result<(), String> {
     guarded("check_setting", || {
         fluidcast_backend::check_property(property, value).map_err(|e| e.to_string())
@@ -545,25 +575,7 @@ impl Renderer {
             plan::check_field(&s.field)?;
             plan::check_sampling(s)?;
             backend_of(s.backend)?;
-            if !(s.error_tolerance.is_finite() && s.error_tolerance < 1.0) {
-                return Err(format!(
-                    "error tolerance {} must be below 1 (<= 0: off)",
-                    s.error_tolerance
-                ));
-            }
-            let scale_ok = s.radius_scale.is_finite() && s.radius_scale > 0.0;
-            if !s.radius_array.is_empty() && !scale_ok {
-                return Err(format!("radius scale {} must be > 0", s.radius_scale));
-            }
-            if !s.support_radius.is_finite() {
-                return Err(format!("support radius {} is not finite", s.support_radius));
-            }
-            if !s.lod_tolerance.is_finite() {
-                return Err(format!(
-                    "level-of-detail tolerance {} is not finite (<= 0: off)",
-                    s.lod_tolerance
-                ));
-            }
+            check_settings(s)?;
             let same_particles = self.settings.as_ref().is_some_and(|o| {
                 o.scalars == s.scalars
                     && o.component == s.component
@@ -1151,7 +1163,11 @@ mod tests {
         let e = render(&mut r).unwrap_err();
         assert!(e.contains("LODTolerance"), "{e}");
         s.lod_tolerance = f64::NAN;
-        assert!(r.configure(&s).unwrap_err().contains("not finite"));
+        let e = r.configure(&s).unwrap_err();
+        assert!(
+            e.contains("LODTolerance must be") && e.ends_with("not NaN"),
+            "{e}"
+        );
     }
 
     /// With iso values the bridge draws surfaces (on the CPU unless the backend is GPU) exactly
@@ -1316,9 +1332,8 @@ mod tests {
             shadow_ambient: 3.0,
             ..s
         };
-        r.configure(&shadows).unwrap();
-        let e = r.render(w, h, &[], &mut rgba, &mut depth).unwrap_err();
-        assert!(e.contains("ambient"), "{e}");
+        let e = r.configure(&shadows).unwrap_err();
+        assert!(e.contains("ShadowAmbient"), "{e}");
     }
 
     #[test]
