@@ -66,8 +66,14 @@ def read(path: str | Path) -> pv.PolyData:
     file, and for a mesh (cells other than vertices, cell data, a structured grid), which
     this reader would strip to its points: read meshes with ``pyvista.read``."""
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(f"{path}: no such file")
+    if path.is_dir():
+        raise ValueError(f"{path}: a directory, not a particle file (give a .vtu, .vtp, .vtk, "
+                         ".pvtu or .pvd file in it)")
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file (a FIFO, socket or device), which "
+                         "fluidcast does not read")
     reader = vtkFluidCastReader()
     errors = _Errors(reader)
     reader.SetFileName(str(path))

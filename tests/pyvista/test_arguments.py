@@ -5,6 +5,7 @@ Hand-picked cases first, then property-based ones (hypothesis): random values, N
 infinities included, for the numeric arguments, and random shapes and types of scalars.
 """
 import math
+import os
 
 import fluidcast
 import numpy as np
@@ -114,3 +115,14 @@ def test_scalars_clim_and_isosurfaces_raise_or_render(shape, dtype, clim, isosur
     p.render()
     assert volume.mapper.GetLastError() == "", volume.mapper.GetLastError()
     p.close()
+
+
+def test_read_says_what_a_path_is(tmp_path):
+    with pytest.raises(ValueError, match="a directory, not a particle file"):
+        fluidcast.read(tmp_path)
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        fluidcast.read(tmp_path / "missing.vtu")
+    fifo = tmp_path / "fifo.vtu"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):
+        fluidcast.read(fifo)

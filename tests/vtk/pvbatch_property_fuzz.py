@@ -37,6 +37,7 @@ from paraview.simple import (
 )
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction
 from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 from vtkmodules.vtkRenderingCore import (
     vtkColorTransferFunction,
@@ -46,7 +47,6 @@ from vtkmodules.vtkRenderingCore import (
     vtkVolumeProperty,
     vtkWindowToImageFilter,
 )
-from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction
 
 plugin, data, array, out = sys.argv[1:5]
 cases = int(sys.argv[5]) if len(sys.argv) > 5 else 200
@@ -166,7 +166,8 @@ display.FluidCastSupportRadius = 0.0
 pv_restore()
 if (d := worst(pv_image("restored"), reference)) > AGREE:
     failures.append(f"ParaView: after inf and -1 the good radius renders {d}/255 off")
-say(f"ParaView: {len(fuzzed)} properties; SupportRadius inf, -1, then good: {'ok' if not failures else failures}")
+say(f"ParaView: {len(fuzzed)} properties; SupportRadius inf, -1, then good: "
+    f"{'ok' if not failures else failures}")
 
 
 def random_value(prop):

@@ -26,7 +26,9 @@ pub mod settings;
 
 pub use frame::{tile_particles, Rendered};
 
-pub use plan::{March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES};
+pub use plan::{
+    March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES, SURFACES_OVER_ADAPTIVE,
+};
 pub use scene::{LodReport, Scene};
 pub use settings::{check_property, Setting, SettingError, SETTINGS};
 

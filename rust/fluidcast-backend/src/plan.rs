@@ -107,6 +107,9 @@ pub struct RenderPlan {
 /// reference renderer.
 pub const REFERENCE_FOR_SURFACES: &str = "rendering with the reference ray caster (exact, and it composites translucent surfaces with the volume)";
 
+/// The note [`RenderPlan::mode_for`] gives when iso-surfaces are drawn in the adaptive mode.
+pub const SURFACES_OVER_ADAPTIVE: &str = "iso-surfaces are found exactly along each ray on the CPU; the adaptive renderer draws only the volume in front of them (when the volume is asked for)";
+
 impl RenderPlan {
     /// Refuses what the renderer does not draw yet, naming the part of the plan
     /// ([`BackendError::Refused`]): level of detail with iso-surfaces of another array; the
@@ -130,15 +133,25 @@ impl RenderPlan {
     /// chose it: iso-surfaces (except on an explicitly asked GPU, whose adaptive volume the
     /// surfaces stop) and a shaded volume take the reference renderer; otherwise adaptive.
     /// The stochastic march has no mode.
+    ///
+    /// In the adaptive mode (asked for, or on an asked GPU) iso-surfaces are still found by the
+    /// exact caster on the CPU, with the adaptive renderer drawing only the volume in front of
+    /// them: the note ([`SURFACES_OVER_ADAPTIVE`]) says so rather than let a user think the
+    /// surfaces were drawn adaptively.
     pub fn mode_for(&self, backend: Backend) -> (Mode, Option<&'static str>) {
-        if let Some(m) = self.mode {
-            return (m, None);
-        }
-        let surfaces = self.params.surfaces.is_some() && backend != Backend::Gpu;
-        if self.march.is_none() && (surfaces || self.params.volume_lighting.is_some()) {
-            return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
-        }
-        (Mode::Adaptive, None)
+        let surfaces = self.params.surfaces.is_some() && self.march.is_none();
+        let mode = match self.mode {
+            Some(m) => m,
+            None if surfaces && backend != Backend::Gpu => {
+                return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
+            }
+            None if self.march.is_none() && self.params.volume_lighting.is_some() => {
+                return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
+            }
+            None => Mode::Adaptive,
+        };
+        let note = (surfaces && mode == Mode::Adaptive).then_some(SURFACES_OVER_ADAPTIVE);
+        (mode, note)
     }
 }
 

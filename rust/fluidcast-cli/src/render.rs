@@ -226,13 +226,18 @@ fn write_aov_pngs(image: &Image, out: &Path, tolerance: Option<f64>) -> Result<(
 }
 
 pub fn parse_frames(s: &str, n: usize) -> Result<Vec<usize>> {
+    if s.trim().is_empty() {
+        bail!("--frames '': give one frame index or START:END[:STEP] (e.g. 3, 0:10, 0:10:2)");
+    }
     let parts: Vec<&str> = s.split(':').collect();
     let num = |t: &str, d: usize| -> Result<usize> {
-        if t.trim().is_empty() {
-            Ok(d)
-        } else {
-            t.trim().parse().with_context(|| format!("--frames '{s}'"))
+        let t = t.trim();
+        if t.is_empty() {
+            return Ok(d);
         }
+        t.parse().ok().with_context(|| {
+            format!("--frames '{s}': '{t}' is not a frame index (whole numbers from 0)")
+        })
     };
     let (a, b, step) = match parts.len() {
         1 => {
@@ -265,6 +270,9 @@ fn frame_path(pattern: &Path, index: usize) -> Result<PathBuf> {
     let Some(p) = s.find('%') else {
         bail!("output '{s}' needs a %04d-style frame pattern for several frames")
     };
+    if s.matches('%').count() > 1 {
+        bail!("output '{s}': one frame pattern (%d or %04d) only, and no other '%'");
+    }
     let rest = &s[p + 1..];
     let end = rest
         .find('d')
@@ -570,7 +578,12 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
         } else {
             "--shade-volume"
         };
-        eprintln!("note: {what}: {n} (--mode reference)");
+        let how = if mode == Mode::Reference {
+            " (--mode reference)"
+        } else {
+            ""
+        };
+        eprintln!("note: {what}: {n}{how}");
     }
     // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
     let mode = if plan.march.is_some() {

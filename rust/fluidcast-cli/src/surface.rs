@@ -10,8 +10,10 @@ use fluidcast_view::{Light, Lighting};
 #[derive(clap::Args, Debug, Clone)]
 pub struct SurfaceArgs {
     /// Draw iso-surfaces at these values of --iso-field (comma-separated), e.g. `--iso 0.5`
-    /// for the free surface. Rendered on the CPU by the reference ray caster (the default
-    /// --mode with --iso); the adaptive and GPU renderers do not draw surfaces yet.
+    /// for the free surface. Found exactly along each ray on the CPU by the reference ray
+    /// caster (the default --mode with --iso) or between slices by --mode perspective-grid;
+    /// with --mode adaptive or --backend gpu the adaptive renderer draws the volume in front
+    /// of them (a note says so).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true,
           value_parser = crate::checked::real("--iso"))]
     pub iso: Vec<f64>,

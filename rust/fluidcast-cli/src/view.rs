@@ -232,9 +232,25 @@ impl ViewArgs {
         cam.elevation(a.elevation);
         cam.orthogonalize_view_up();
         if !(a.zoom.is_finite() && a.zoom > 0.0) {
-            bail!("--zoom {}: must be > 0", a.zoom);
+            bail!(
+                "--zoom {}: must be a finite number > 0 (> 1 zooms in)",
+                a.zoom
+            );
         }
+        let angle = cam.view_angle;
         cam.zoom(a.zoom);
+        if !cam.parallel_projection && (cam.view_angle.is_nan() || cam.view_angle >= 180.0) {
+            bail!(
+                "--zoom {:?}: the view angle would be {:.3e}°, which must stay below 180°; \
+                 --zoom must be at least {:.4} here",
+                a.zoom,
+                cam.view_angle,
+                angle / 179.0
+            );
+        }
+        if !cam.parallel_scale.is_finite() {
+            bail!("--zoom {}: the parallel scale would not be finite", a.zoom);
+        }
         if let Some(p) = &a.save_camera {
             std::fs::write(p, serde_json::to_string_pretty(&cam)?)
                 .with_context(|| format!("writing {}", p.display()))?;
@@ -329,11 +345,11 @@ pub fn parse_pair(s: &str, what: &str) -> Result<(f64, f64)> {
 }
 
 pub fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size '{s}': expected WxH, e.g. 800x600"))?;
-    let w: u64 = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    let h: u64 = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
+    let expected =
+        || format!("--size '{s}': expected WxH, two whole numbers of pixels, e.g. 800x600");
+    let (w, h) = s.split_once(['x', 'X']).with_context(expected)?;
+    let side = |t: &str| t.trim().parse::<u64>().ok().with_context(expected);
+    let (w, h) = (side(w)?, side(h)?);
     if w == 0
         || h == 0
         || w > fluidcast_backend::MAX_SIDE as u64

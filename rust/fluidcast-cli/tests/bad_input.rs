@@ -757,3 +757,59 @@ fn fifos_are_refused_not_waited_on() {
         );
     }
 }
+
+/// Issue 45's unclear messages: each says what was wrong and what to give instead.
+#[test]
+fn option_mistakes_say_what_to_give() {
+    let series = fixture("series.pvd");
+    for (extra, says) in [
+        (
+            &["--frames", ""][..],
+            "give one frame index or START:END[:STEP]",
+        ),
+        (
+            &["--frames=-1"][..],
+            "'-1' is not a frame index (whole numbers from 0)",
+        ),
+        (&["--frames", "0:x"][..], "'x' is not a frame index"),
+        (
+            &["--zoom", "1e-30"][..],
+            "must stay below 180°; --zoom must be at least",
+        ),
+    ] {
+        let err = render_err(&series, extra);
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert!(!err.contains("invalid digit"), "{extra:?}: {err}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let one = dir.path().join("one.png");
+    let (one, series_path) = (one.to_str().unwrap(), series.to_str().unwrap());
+    let (ok, err) = run(&["render", series_path, "-o", one, "--size", "64x48x3"]);
+    assert!(
+        !ok && err.contains("expected WxH, two whole numbers of pixels"),
+        "{err}"
+    );
+    let out = dir.path().join("x_%d_%d.png");
+    let (ok, err) = run(&[
+        "render",
+        series.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && err.contains("one frame pattern (%d or %04d) only"),
+        "{err}"
+    );
+    assert!(!dir.path().join("x_0_%d.png").exists());
+    // A piece path no file system takes is refused without echoing 100,000 characters.
+    let long = format!(
+        r#"<?xml version="1.0"?><VTKFile type="PUnstructuredGrid" version="0.1"><PUnstructuredGrid><PPoints><PDataArray type="Float32" NumberOfComponents="3"/></PPoints><Piece Source="{}.vtu"/></PUnstructuredGrid></VTKFile>"#,
+        "a".repeat(100_000)
+    );
+    let p = write(dir.path(), "long.pvtu", long.as_bytes());
+    let err = render_err(&p, &[]);
+    assert!(
+        err.contains("a path of 100004 bytes") && err.len() < 1000,
+        "{err}"
+    );
+}

@@ -212,3 +212,34 @@ fn iso_options_are_checked_and_refused_where_not_drawn() {
     ]);
     assert_eq!(code, Some(0), "{err}");
 }
+
+/// Iso-surfaces with the adaptive mode asked for say who draws what (the exact caster the
+/// surfaces, the adaptive renderer the volume), instead of rendering in silence; without a
+/// mode the note says the reference ray caster was chosen.
+#[test]
+fn surfaces_in_the_adaptive_mode_are_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o.png");
+    let sample = common::sample();
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![sample.to_str().unwrap(), "-o", out.to_str().unwrap()];
+        a.extend_from_slice(&["--size", "32x24", "--iso", "0.5"]);
+        a.extend_from_slice(extra);
+        a
+    };
+    let render = |extra: &[&'static str]| {
+        let mut a = vec!["render"];
+        a.extend(args(extra));
+        fluidcast(&a)
+    };
+    let err = render(&["--mode", "adaptive"]);
+    assert!(
+        err.contains("note: --iso: iso-surfaces are found exactly along each ray on the CPU"),
+        "{err}"
+    );
+    let err = render(&[]);
+    assert!(
+        err.contains("note: --iso: rendering with the reference ray caster"),
+        "{err}"
+    );
+}

@@ -46,6 +46,21 @@ pub use error::{ReadError, ReadErrorKind};
 pub use parallel::{parse_parallel, ParallelFile};
 pub use pvd::{parse_collection, read_collection, Collection, CollectionEntry};
 
+/// The longest path a file list (`.pvtu` piece, `.pvd` entry) may name, in bytes: Linux's
+/// PATH_MAX. A longer one cannot be opened; it is refused without being echoed.
+pub const MAX_PATH_BYTES: usize = 4096;
+
+/// Refuses a path of more than [`MAX_PATH_BYTES`] bytes, naming `what` and its length only.
+pub(crate) fn check_path_length(path: &str, what: &str) -> Result<(), String> {
+    if path.len() > MAX_PATH_BYTES {
+        return Err(format!(
+            "{what} is a path of {} bytes, longer than any file system takes ({MAX_PATH_BYTES})",
+            path.len()
+        ));
+    }
+    Ok(())
+}
+
 /// The numeric type an array had in the file. Values are always held as `f64`, which
 /// represents every type exactly except 64-bit integers above 2^53.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -84,6 +84,8 @@ pub fn parse_parallel(bytes: &[u8], path: &Path) -> Result<ParallelFile, ReadErr
                         let source = a.get("Source").filter(|s| !s.trim().is_empty());
                         let source =
                             source.ok_or_else(|| format("a <Piece> without a 'Source' file"))?;
+                        crate::check_path_length(source, "a <Piece>'s 'Source'")
+                            .map_err(|m| format(&m))?;
                         out.pieces.push(dir.join(source.trim()));
                     }
                     _ => {}

@@ -74,6 +74,8 @@ pub fn parse_collection(bytes: &[u8], path: &Path) -> Result<Collection, ReadErr
                             "<DataSet> without a 'file' attribute".into(),
                         ))
                     })?;
+                    crate::check_path_length(file, "a <DataSet>'s 'file'")
+                        .map_err(|m| err(ReadErrorKind::Format(m)))?;
                     let timestep = match a.get("timestep") {
                         Some(t) => t.trim().parse::<f64>().map_err(|_| {
                             err(ReadErrorKind::Format(format!(
