@@ -9,9 +9,31 @@
 # (panic-N.EXT; current.bin holds the input that was running if the process died; hang.bin
 # an input that ran longer than 10 s). Exit code 0 when nothing was found.
 # Extra seed folders: FLUIDCAST_FUZZ_SEEDS="dir1 dir2" (e.g. ../shared/data/*/ for real files).
+#
+#   bash scripts/fuzz.sh --properties [CASES] [SEED]   # default 100000 cases each, seed 1
+#
+# --properties: random values (inf, NaN, negative, out-of-range enumerations, unknown names)
+# for the ParaView representation's properties and the VTK mapper's setters, each followed by
+# a render of good data, defaults restored and the image compared every 10 cases
+# (tests/vtk/pvbatch_property_fuzz.py in pvbatch, on the plugin the test command builds in
+# build/; the test command runs 200 of each). Exit code 0 when the view never broke.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
+if [ "${1:-}" = --properties ]; then
+  cases="${2:-100000}"
+  seed="${3:-1}"
+  plugin="$root/build/lib/paraview-plugins/fluidcast/fluidcast.so"
+  [ -f "$plugin" ] || { echo "fuzz: no plugin at $plugin: run scripts/setup_vtk.sh" >&2; exit 2; }
+  export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/fluidcast-runtime-$(id -u)}"
+  mkdir -p -m 700 "$XDG_RUNTIME_DIR"
+  out="$root/target/fuzz-properties"
+  mkdir -p "$out"
+  exec env PYTHONPATH="$root/build/python" tests/vtk/with_xvfb.sh \
+    env LD_PRELOAD="$root/build/lib/libfluidcast_expat_fix.so" pvbatch \
+    tests/vtk/pvbatch_property_fuzz.py "$plugin" tests/fixtures/lattice_binary_none_h32.vtu \
+    velocity "$out" "$cases" "$seed" 16x12
+fi
 inputs="${1:-1000000}"
 seed="${2:-1}"
 cargo build --release -q -p fluidcast-fuzz

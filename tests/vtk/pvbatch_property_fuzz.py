@@ -3,7 +3,7 @@ ParaView view) and the wrapped mapper's setters (in a VTK window) never leave th
 to render good data.
 
     PYTHONPATH=BUILD/python pvbatch pvbatch_property_fuzz.py PLUGIN.so DATA.vtu ARRAY OUTDIR \
-        [CASES] [SEED]
+        [CASES] [SEED] [WxH]
 
 First, the case of issue 45: FluidCastSupportRadius = inf, then -1, then a good value; the
 view's camera stays finite and the good data render again as before.
@@ -52,7 +52,7 @@ plugin, data, array, out = sys.argv[1:5]
 cases = int(sys.argv[5]) if len(sys.argv) > 5 else 200
 seed = int(sys.argv[6]) if len(sys.argv) > 6 else 1
 os.makedirs(out, exist_ok=True)
-W, H = 64, 48
+W, H = map(int, (sys.argv[7] if len(sys.argv) > 7 else "64x48").split("x"))
 RESTORE_EVERY = 10
 AGREE = 1  # /255 per channel
 
@@ -194,7 +194,7 @@ def pv_case(k):
         prop.SetElement(i, v)
     rep.UpdateVTKObjects()
     view.ResetCamera()
-    pv_image()
+    Render(view)
     if not finite_camera(view.GetActiveCamera()):
         failures.append(f"ParaView case {k}: {name} = {values} left the camera not finite")
 
@@ -310,7 +310,7 @@ def vtk_case(k):
     except (TypeError, ValueError, OverflowError):
         return  # the wrapping refuses the value before it reaches the mapper
     ren.ResetCamera()
-    vtk_image()
+    win.Render()
     if not finite_camera(ren.GetActiveCamera()):
         failures.append(f"mapper case {k}: Set{name}({v}) left the camera not finite")
 

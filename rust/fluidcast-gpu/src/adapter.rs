@@ -69,31 +69,26 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
 /// Every adapter wgpu finds, best first, as "name (API[, software])": those of the primary
 /// APIs (Vulkan, Metal, DX12), or OpenGL's when there are none.
 pub fn list_adapters() -> Vec<String> {
-    ranked(false)
-        .iter()
-        .map(|a| describe(&a.get_info()))
-        .collect()
+    ranked().iter().map(|a| describe(&a.get_info())).collect()
 }
 
-/// Adapters best first: of every API when `all`, else of the primary APIs, falling back to
-/// OpenGL only when they have none (probing OpenGL/EGL prints warnings on headless Linux).
-fn ranked(all: bool) -> Vec<wgpu::Adapter> {
+/// Adapters best first: of the primary APIs, falling back to OpenGL only when they have none.
+/// A name is looked up among these too: probing OpenGL/EGL prints warnings on headless Linux,
+/// and inside a process that holds an OpenGL context of its own (ParaView, a VTK window) wgpu's
+/// EGL probe panics (BadAccess), which a misspelt adapter name then reached.
+fn ranked() -> Vec<wgpu::Adapter> {
     let list = |b| pollster::block_on(instance(b).enumerate_adapters(b));
-    let mut found = if all {
-        list(wgpu::Backends::all())
-    } else {
-        list(wgpu::Backends::PRIMARY)
-    };
-    if found.is_empty() && !all {
+    let mut found = list(wgpu::Backends::PRIMARY);
+    if found.is_empty() {
         found = list(wgpu::Backends::SECONDARY);
     }
     found.sort_by_key(|a| rank(&a.get_info()));
     found
 }
 
-/// The adapter `choice` picks (an adapter by name among every API's).
+/// The adapter `choice` picks (an adapter by name among those [`list_adapters`] gives).
 pub(crate) fn pick(choice: &AdapterChoice) -> Result<wgpu::Adapter, GpuError> {
-    let all = ranked(matches!(choice, AdapterChoice::Named(_)));
+    let all = ranked();
     let names = || {
         let v: Vec<String> = all.iter().map(|a| describe(&a.get_info())).collect();
         if v.is_empty() {
