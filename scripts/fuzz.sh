@@ -10,7 +10,15 @@
 # an input that ran longer than 10 s). Exit code 0 when nothing was found.
 # Extra seed folders: FLUIDCAST_FUZZ_SEEDS="dir1 dir2" (e.g. ../shared/data/*/ for real files).
 #
+#   bash scripts/fuzz.sh --files [CASES] [SEED]        # default 100000 cases, seed 1
 #   bash scripts/fuzz.sh --properties [CASES] [SEED]   # default 100000 cases each, seed 1
+#
+# --files: inputs of several files (fluidcast-fuzz-files): random graphs of .pvtu summaries
+# and .pvd collections naming each other (cycles, a file listing itself, the same piece
+# 2000 times), seed pieces (some mutated), FIFOs, links (loops, dangling), folders, missing,
+# '..' and absolute paths, opened as the CLI opens its input, read and rendered small, under
+# a 4 GiB address-space limit (the test command runs 3000). Exit code 0 when nothing was
+# found.
 #
 # --properties: random values (inf, NaN, negative, out-of-range enumerations, unknown names)
 # for the ParaView representation's properties and the VTK mapper's setters, each followed by
@@ -20,6 +28,22 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
+if [ "${1:-}" = --files ]; then
+  cases="${2:-100000}"
+  seed="${3:-1}"
+  cargo build --release -q -p fluidcast-fuzz
+  out="$root/target/fuzz-files"
+  mkdir -p "$out"
+  (ulimit -v 4194304; exec target/release/fluidcast-fuzz-files --cases "$cases" --seed "$seed" \
+    --out "$out" tests/fixtures) && rc=0 || rc=$?
+  case $rc in
+    0) echo "fuzz --files: no findings" ;;
+    1) echo "fuzz --files: findings kept under $out (panic-N folders)" ;;
+    3) echo "fuzz --files: a hang, kept as $out/case" ;;
+    *) echo "fuzz --files: the process died (exit $rc); the case is $out/case" ;;
+  esac
+  exit $rc
+fi
 if [ "${1:-}" = --properties ]; then
   cases="${2:-100000}"
   seed="${3:-1}"

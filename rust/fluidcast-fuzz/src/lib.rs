@@ -11,10 +11,15 @@
 //! A panic is caught and reported as a [`Finding`]; aborts, hangs and huge allocations
 //! are caught by the runner (`fluidcast-fuzz` binary), which runs under an address-space
 //! limit and a watchdog.
+//!
+//! [`files`] generates inputs of several files (summaries and collections naming each other,
+//! FIFOs, links); the `fluidcast-fuzz-files` binary runs them.
 #![warn(missing_docs)]
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+
+pub mod files;
 
 use fluidcast_render::RenderParams;
 use fluidcast_sph::{ParticleSpec, Particles};

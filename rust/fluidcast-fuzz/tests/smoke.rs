@@ -46,3 +46,46 @@ fn twenty_thousand_mutants_without_a_crash() {
         .unwrap();
     assert!(accepted > 500 && accepted < 19_000, "{last}");
 }
+
+/// The multi-file fuzzer's smoke run: 3,000 random graphs of `.pvtu`/`.pvd` files, pieces,
+/// FIFOs, links and folders naming each other (`fluidcast_fuzz::files`), opened, read and
+/// rendered under a 4 GiB address-space limit. A panic, an abort or a case running longer
+/// than 10 s (a FIFO read, a cycle followed) fails it. Long runs: `scripts/fuzz.sh --files`.
+#[test]
+fn three_thousand_file_graphs_without_a_crash() {
+    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures");
+    let out = tempfile::tempdir().unwrap();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 4194304; exec '{}' --cases 3000 --seed 7 --out '{}' '{}'",
+            env!("CARGO_BIN_EXE_fluidcast-fuzz-files"),
+            out.path().display(),
+            fixtures.display()
+        ))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    println!("{text}");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "multi-file fuzz smoke run failed:\n{text}"
+    );
+    let last = text.lines().rev().find(|l| l.contains("cases in")).unwrap();
+    assert!(
+        last.starts_with("3000 cases in") && last.ends_with(", 0 findings"),
+        "{last}"
+    );
+    // Both outcomes occur: some graphs read and render, most are refused.
+    let rendered: u64 = last
+        .split(": ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(rendered > 30 && rendered < 2900, "{last}");
+}
