@@ -27,6 +27,10 @@
 #include "fluidcast-cxx/src/lib.rs.h"
 
 #include <algorithm>
+#include <atomic>
+#include <exception>
+#include <functional>
+#include <thread>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -343,6 +347,7 @@ FLUIDCAST_CHECKED_SETTER(SamplesPerPixel, int)
 FLUIDCAST_CHECKED_SETTER(ProgressivePasses, int)
 FLUIDCAST_CHECKED_SETTER(ShadowAmbient, double)
 FLUIDCAST_CHECKED_SETTER(MemoryLimit, double)
+FLUIDCAST_CHECKED_SETTER(WorkLimit, double)
 FLUIDCAST_CHECKED_SETTER(LODTolerance, double)
 FLUIDCAST_CHECKED_SETTER(GridCell, int)
 FLUIDCAST_CHECKED_SETTER(Tiles, int)
@@ -645,6 +650,7 @@ bool vtkFluidCastVolumeMapper::UploadNow(vtkPointSet* input)
     s.backend = this->Backend;
     s.adapter = this->Adapter ? this->Adapter : "";
     s.memory_limit_mib = this->MemoryLimit;
+    s.work_limit = this->WorkLimit;
     s.lod_tolerance = this->LODTolerance;
     s.mode = this->Mode ? this->Mode : "";
     s.grid_cell = static_cast<uint32_t>(this->GridCell);
@@ -856,9 +862,16 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     const double* zs = this->SharedSupportDepths;
     r.set_part(rust::Slice<const double>(c, this->Cropping ? 6 : 0),
       rust::Slice<const double>(zs, zs[0] <= zs[1] ? 2 : 0));
-    fluidcast::RenderInfo info = r.render(static_cast<uint32_t>(sw), static_cast<uint32_t>(sh),
-      rust::Slice<const float>(limit.data(), limit.size()),
-      rust::Slice<float>(rgba.data(), rgba.size()), rust::Slice<float>(depth.data(), depth.size()));
+    fluidcast::RenderInfo info;
+    if (!this->RenderWatched(win, [&]() {
+          info = r.render(static_cast<uint32_t>(sw), static_cast<uint32_t>(sh),
+            rust::Slice<const float>(limit.data(), limit.size()),
+            rust::Slice<float>(rgba.data(), rgba.size()),
+            rust::Slice<float>(depth.data(), depth.size()));
+        }))
+    {
+      return; // VTK's abort check asked to stop: nothing is drawn, and no error
+    }
     this->LastSamples = static_cast<vtkIdType>(info.samples);
     this->LastTiles = static_cast<vtkIdType>(info.tiles);
     std::string device(info.device);
@@ -879,6 +892,49 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   this->LastRenderMilliseconds = 1e3 * took.count();
   this->LastImageSampleDistance = s;
   this->Impl->Record(static_cast<double>(sw) * sh, took.count());
+}
+
+//------------------------------------------------------------------------------
+bool vtkFluidCastVolumeMapper::RenderWatched(
+  vtkRenderWindow* win, const std::function<void()>& render)
+{
+  // The frame renders on a worker thread while this (VTK's) thread reports its progress
+  // (ProgressEvent) and polls VTK's abort check (an interactor's pending events set
+  // AbortRender): a long frame can be interrupted, as VTK's own ray casters can.
+  rust::Box<fluidcast::RenderControl> control = fluidcast::new_render_control();
+  this->Impl->Renderer->set_render_control(*control);
+  std::exception_ptr failed;
+  std::atomic<bool> done{ false };
+  std::thread worker([&]() {
+    try
+    {
+      render();
+    }
+    catch (...)
+    {
+      failed = std::current_exception();
+    }
+    done = true;
+  });
+  while (!done)
+  {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (!done && win && win->CheckAbortStatus())
+    {
+      control->cancel();
+    }
+    this->UpdateProgress(control->fraction());
+  }
+  worker.join();
+  if (control->cancelled())
+  {
+    return false;
+  }
+  if (failed)
+  {
+    std::rethrow_exception(failed);
+  }
+  return true;
 }
 
 //------------------------------------------------------------------------------
@@ -992,6 +1048,7 @@ void vtkFluidCastVolumeMapper::PrintSelf(ostream& os, vtkIndent indent)
   os << indent << "Backend: " << this->GetBackendAsString() << "\n";
   os << indent << "Adapter: " << (this->Adapter ? this->Adapter : "(best)") << "\n";
   os << indent << "MemoryLimit: " << this->MemoryLimit << " MiB\n";
+  os << indent << "WorkLimit: " << this->WorkLimit << " kernel evaluations (0: 5e10)\n";
   os << indent << "LODTolerance: " << this->LODTolerance << " px\n";
   os << indent << "Mode: " << (this->Mode ? this->Mode : "auto") << "\n";
   os << indent << "GridCell: " << this->GridCell << " px\n";

@@ -38,12 +38,14 @@
 #include "vtkAbstractVolumeMapper.h"
 #include "vtkVolumeMapper.h" // for the blend mode constants
 
-#include <memory> // for std::unique_ptr
+#include <functional> // for std::function
+#include <memory>     // for std::unique_ptr
 #include <string> // for std::string
 #include <vector> // for std::vector
 
 class vtkCamera;
 class vtkPointSet;
+class vtkRenderWindow;
 class vtkRenderer;
 class vtkVolume;
 
@@ -212,6 +214,17 @@ public:
    */
   virtual void SetMemoryLimit(double value);
   vtkGetMacro(MemoryLimit, double);
+  ///@}
+
+  ///@{
+  /**
+   * The most kernel evaluations a frame may be estimated to take before it runs (each
+   * particle's footprint in pixels times the depth samples through it): above it nothing is
+   * drawn and the error says how much the view needs, rather than rendering for minutes (a
+   * support radius far too large, a camera inside the fluid). 0 (default): 5e10.
+   */
+  virtual void SetWorkLimit(double value);
+  vtkGetMacro(WorkLimit, double);
   ///@}
 
   ///@{
@@ -472,6 +485,12 @@ protected:
   vtkFluidCastVolumeMapper();
   /** CheckSetting, with a refusal reported as an error that names what is kept. */
   bool AcceptSetting(const char* property, double value, double kept);
+  /**
+   * Runs `render` (the bridge's render) on a worker thread while this thread reports its
+   * progress (UpdateProgress) and polls `win`'s CheckAbortStatus, cancelling the render when
+   * VTK asks to abort. Returns false when it was cancelled; rethrows the render's error.
+   */
+  bool RenderWatched(vtkRenderWindow* win, const std::function<void()>& render);
   ~vtkFluidCastVolumeMapper() override;
 
   int FillInputPortInformation(int port, vtkInformation* info) override;
@@ -494,6 +513,7 @@ protected:
   int Backend = AUTO;
   char* Adapter = nullptr;
   double MemoryLimit = 0.0;
+  double WorkLimit = 0.0;
   double LODTolerance = 0.0;
   char* Mode = nullptr;
   int GridCell = 1;

@@ -318,6 +318,11 @@ void vtkFluidCastRepresentation::SetMemoryLimit(double mib)
   this->Mapper->SetMemoryLimit(mib);
 }
 
+void vtkFluidCastRepresentation::SetWorkLimit(double evaluations)
+{
+  this->Mapper->SetWorkLimit(evaluations);
+}
+
 void vtkFluidCastRepresentation::SetLODTolerance(double px)
 {
   this->Mapper->SetLODTolerance(px);

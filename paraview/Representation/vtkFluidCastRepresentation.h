@@ -57,6 +57,8 @@ public:
   void SetErrorTolerance(double e);
   /** The mapper's MemoryLimit (MiB; 0: none): render in screen tiles to stay within it. */
   void SetMemoryLimit(double mib);
+  /** The mapper's WorkLimit (kernel evaluations a frame may be estimated to take; 0: 5e10). */
+  void SetWorkLimit(double evaluations);
   /** The mapper's LODTolerance (pixels; 0: every particle): particle level of detail. */
   void SetLODTolerance(double px);
   void SetBackend(int backend);

@@ -92,6 +92,8 @@ impl Renderer {
             Some((p, c)) => (p, c.surface_flags()),
             None => (scene.particles(), scene.surface_flags()),
         };
+        let limit = plan.work_limit.unwrap_or(crate::work::DEFAULT_WORK_LIMIT);
+        crate::work::check(particles, &scene.camera, &plan.params, limit)?;
         let tiles = tile_particles(particles.len(), plan.size(), &plan.tiles)?;
         let surface = surface.filter(|_| flags);
         let (image, mut stats) =

@@ -23,6 +23,7 @@ mod march;
 mod plan;
 mod scene;
 pub mod settings;
+pub mod work;
 
 pub use frame::{tile_particles, Rendered};
 
@@ -38,9 +39,9 @@ pub use fluidcast_rbf::{
     AttributeMap, Colouring, RbfError, RbfOptions, DEFAULT_LEAF_SIZE, MAX_LEAF_SIZE,
 };
 pub use fluidcast_render::{
-    crop_to_box, support_depth_extent, GridParams, IsoField, Noise, PlanParams, RbfRenderParams,
-    RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_CELL, MAX_SIDE,
-    MIN_TILE_BYTES,
+    crop_to_box, support_depth_extent, GridParams, IsoField, Noise, PlanParams, Progress,
+    RbfRenderParams, RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_CELL,
+    MAX_SIDE, MIN_TILE_BYTES,
 };
 
 /// Where the adaptive renderer runs.
@@ -128,6 +129,8 @@ pub enum PlanItem {
     Lod,
     /// Iso-surfaces or the shaded volume in [`RenderParams`].
     Surfaces,
+    /// [`RenderPlan::work_limit`]: the frame's estimated work is above it.
+    Work,
 }
 
 impl BackendError {

@@ -101,6 +101,10 @@ pub struct RenderPlan {
     pub lod: Option<f64>,
     /// The stochastic march (RBF field, or shadows) instead of the sampled volume.
     pub march: Option<March>,
+    /// The most kernel evaluations a frame may be estimated to take before it runs
+    /// ([`crate::work::estimate`]); above it the render is refused with a message.
+    /// `None`: [`crate::work::DEFAULT_WORK_LIMIT`]; infinity: no limit.
+    pub work_limit: Option<f64>,
 }
 
 /// The note [`RenderPlan::mode_for`] gives when iso-surfaces or a shaded volume take the

@@ -147,6 +147,13 @@ pub const SETTINGS: &[Setting] = &[
         meaning: "MiB; 0: none",
     },
     Setting {
+        property: "WorkLimit",
+        flag: "--max-work",
+        python: "",
+        domain: real(0.0, F32_MAX),
+        meaning: "kernel evaluations a frame may be estimated to take; 0: 5e10",
+    },
+    Setting {
         property: "LODTolerance",
         flag: "--lod",
         python: "",

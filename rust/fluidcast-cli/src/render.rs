@@ -71,6 +71,12 @@ pub struct RenderArgs {
     /// full detail.
     #[arg(long, allow_hyphen_values = true, value_parser = crate::checked::real("--lod"))]
     lod: Option<f64>,
+    /// The most kernel evaluations a frame may be estimated to take before it runs (each
+    /// particle's footprint in pixels times the depth samples through it; default 5e10,
+    /// about 10 s on 2 cores): above it the render is refused with what the view needs (a
+    /// support radius far too large, a camera inside the fluid). `off`: no limit.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_max_work)]
+    max_work: Option<f64>,
 }
 
 /// Rendering a view in screen tiles, to bound memory.
@@ -87,6 +93,13 @@ pub struct SplitArgs {
     /// a little more time).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub tiles: Option<u32>,
+}
+
+fn parse_max_work(s: &str) -> Result<f64, String> {
+    if s.eq_ignore_ascii_case("off") {
+        return Ok(f64::INFINITY);
+    }
+    crate::checked::real("--max-work")(s)
 }
 
 fn parse_memory_limit(s: &str) -> Result<u64, String> {
@@ -135,6 +148,7 @@ fn option_error(a: &RenderArgs, e: BackendError) -> anyhow::Error {
         Some(PlanItem::Tiles) => "--memory-limit/--tiles",
         Some(PlanItem::Lod) => "--lod",
         Some(PlanItem::Surfaces) => "--iso/--shade-volume",
+        Some(PlanItem::Work) => "--max-work",
         None => return e.into(),
     };
     anyhow::Error::new(e).context(flags)
@@ -559,6 +573,8 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
         tiles: Tiles::default(),
         lod: a.lod,
         march,
+        // 0, as the mapper's WorkLimit: the default.
+        work_limit: a.max_work.filter(|&w| w > 0.0),
     };
     // The library's refusals of option combinations, before reading (the tiles the options
     // ask for stand in for the budget each frame computes).
@@ -593,6 +609,52 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
     };
     let renderer = open_backend(&a.sampling, mode)?;
     Ok((plan, renderer))
+}
+
+/// Renders `scene` with `plan`; a frame still rendering after a second shows a progress bar
+/// on a terminal (the share of bundles or tiles cast; not for a series, which has its own).
+fn render_watched(
+    renderer: &Renderer,
+    scene: &mut Scene,
+    mut plan: RenderPlan,
+    quiet: bool,
+) -> Result<Rendered, BackendError> {
+    let progress = Arc::new(fluidcast_backend::Progress::default());
+    plan.params.progress = Some(progress.clone());
+    let finished = std::sync::atomic::AtomicBool::new(false);
+    std::thread::scope(|s| {
+        if !quiet {
+            s.spawn(|| show_progress(&progress, &finished));
+        }
+        let r = renderer.render(scene, &plan);
+        finished.store(true, std::sync::atomic::Ordering::Relaxed);
+        r
+    })
+}
+
+/// A bar of `progress` from a second after the start until `finished`.
+fn show_progress(progress: &fluidcast_backend::Progress, finished: &std::sync::atomic::AtomicBool) {
+    use std::sync::atomic::Ordering;
+    let start = std::time::Instant::now();
+    let mut bar: Option<ProgressBar> = None;
+    while !finished.load(Ordering::Relaxed) {
+        std::thread::sleep(std::time::Duration::from_millis(100));
+        if start.elapsed().as_secs_f64() < 1.0 {
+            continue;
+        }
+        let b = bar.get_or_insert_with(|| {
+            let b = ProgressBar::new(1000);
+            b.set_style(
+                ProgressStyle::with_template("rendering {bar:30} {percent:>3}% {elapsed}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            b
+        });
+        b.set_position((progress.fraction() * 1000.0) as u64);
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
 }
 
 /// What stays from frame to frame of one `fluidcast render`.
@@ -662,9 +724,8 @@ impl Job<'_> {
                 .with_context(|| format!("rendering {}", file.display()))?;
             scene.tf = scene.tf.clone().with_range(lo, hi)?;
         }
-        let r = self
-            .renderer
-            .render(&mut scene, &plan)
+        let quiet_bar = self.progress.is_some(); // a series shows its own bar
+        let r = render_watched(&self.renderer, &mut scene, plan, quiet_bar)
             .map_err(|e| option_error(a, e))
             .with_context(|| format!("rendering {}", file.display()))?;
         if let (Some(l), None) = (&r.lod, &self.progress) {

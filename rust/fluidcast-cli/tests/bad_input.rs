@@ -813,3 +813,22 @@ fn option_mistakes_say_what_to_give() {
         "{err}"
     );
 }
+
+/// A support radius far too large is refused up front with the work the view needs, not
+/// rendered for minutes; `--max-work off` renders it anyway.
+#[test]
+fn a_view_beyond_the_work_limit_is_refused_with_what_it_needs() {
+    let sample = common::sample();
+    let err = render_err(&sample, &["--support-radius", "1000", "--max-work", "1e6"]);
+    assert!(
+        err.contains("--max-work: this view needs about")
+            && err.contains("more than the limit of 1.0e6"),
+        "{err}"
+    );
+    render_ok(&sample, &["--support-radius", "1000", "--max-work", "off"]);
+    let err = render_err(&sample, &["--max-work", "-1"]);
+    assert!(
+        err.contains("'--max-work <MAX_WORK>': must be a number >= 0"),
+        "{err}"
+    );
+}

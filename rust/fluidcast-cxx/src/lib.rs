@@ -86,6 +86,9 @@ mod ffi {
         /// rendered in screen tiles to stay within it, to the same image (the plan's probe
         /// decided per tile: within the plan's error); <= 0: no limit.
         memory_limit_mib: f64,
+        /// The most kernel evaluations a frame may be estimated to take before it runs
+        /// (fluidcast_backend::work); above it the render is refused. 0: the default, 5e10.
+        work_limit: f64,
         /// Particle level of detail (Fraedrich et al. 2010): each part of the view is drawn
         /// at the coarsest level of merged particles whose cells are at most this many pixels
         /// at its depth; <= 0: every particle. The hierarchy is built once per data set.
@@ -329,10 +332,45 @@ mod ffi {
             rgba: &mut [f32],
             depth: &mut [f32],
         ) -> Result<RenderInfo>;
+
+        /// A render's progress and a request to stop it, shared with the thread that
+        /// renders: the mapper renders on a worker thread and, on its own, polls VTK's abort
+        /// check and reports progress.
+        type RenderControl;
+        fn new_render_control() -> Box<RenderControl>;
+        /// The renders that follow report to `control` and stop when it is cancelled.
+        fn set_render_control(self: &mut Renderer, control: &RenderControl);
+        /// Asks the render to stop (it returns an error saying it was cancelled).
+        fn cancel(self: &RenderControl);
+        /// Whether `cancel` was called.
+        fn cancelled(self: &RenderControl) -> bool;
+        /// The share of the ray cast done, 0..=1.
+        fn fraction(self: &RenderControl) -> f64;
     }
 }
 
 pub use ffi::{CameraDesc, RenderInfo, Settings, SurfaceSettings};
+
+/// [`fluidcast_backend::Progress`] behind the C++ side's handle.
+pub struct RenderControl(Arc<fluidcast_backend::Progress>);
+
+fn new_render_control() -> Box<RenderControl> {
+    Box::new(RenderControl(Arc::default()))
+}
+
+impl RenderControl {
+    fn cancel(&self) {
+        self.0.cancel();
+    }
+
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
+    }
+
+    fn fraction(&self) -> f64 {
+        self.0.fraction()
+    }
+}
 
 /// Particle data, settings and view state behind one `vtkFluidCastVolumeMapper`.
 pub struct Renderer {
@@ -346,6 +384,8 @@ pub struct Renderer {
     part: Part,
     /// What `set_surfaces` said (no iso values: none).
     surfaces: Option<ffi::SurfaceSettings>,
+    /// Where renders report progress and look for a cancel (`set_render_control`).
+    control: Option<Arc<fluidcast_backend::Progress>>,
 }
 
 /// What `set_part` said: the crop box (min and max corners) and the whole's support depths.
@@ -369,6 +409,7 @@ fn check_settings(s: &ffi::Settings) -> Result<(), String> {
         ("RadiusScale", s.radius_scale),
         ("ErrorTolerance", s.error_tolerance),
         ("MemoryLimit", s.memory_limit_mib),
+        ("WorkLimit", s.work_limit),
         ("LODTolerance", s.lod_tolerance),
         ("RBFRadius", s.rbf_radius),
         ("SamplesPerPixel", f64::from(s.samples_per_pixel)),
@@ -444,6 +485,7 @@ fn new_renderer() -> Box<Renderer> {
         backend: None,
         part: Part::default(),
         surfaces: None,
+        control: None,
     })
 }
 
@@ -790,6 +832,10 @@ impl Renderer {
         Ok(())
     }
 
+    fn set_render_control(&mut self, control: &RenderControl) {
+        self.control = Some(control.0.clone());
+    }
+
     fn render(
         &mut self,
         width: u32,
@@ -819,6 +865,7 @@ impl Renderer {
             let name = self.name();
             let mut plan = plan_of(&s, (width, height), depth_limit, &camera)?;
             plan.params.support_depths = self.part.support_depths;
+            plan.params.progress = self.control.clone();
             if let Some((lo, hi)) = self.part.crop {
                 fluidcast_backend::crop_to_box(&mut plan.params, &camera, lo, hi)
                     .map_err(|e| format!("{name}: {e}"))?;
@@ -960,6 +1007,7 @@ mod tests {
             backend: 1,
             adapter: String::new(),
             memory_limit_mib: 0.0,
+            work_limit: 0.0,
             lod_tolerance: 0.0,
             rbf_classification: "post".into(),
             rbf_radius: 0.0,
@@ -1334,6 +1382,27 @@ mod tests {
         };
         let e = r.configure(&shadows).unwrap_err();
         assert!(e.contains("ShadowAmbient"), "{e}");
+    }
+
+    /// The mapper's worker thread and its poll of VTK's abort check meet in a
+    /// `RenderControl`: a render reports all of its cast done, and a cancelled one stops
+    /// with an error that says so.
+    #[test]
+    fn a_render_control_sees_progress_and_cancels() {
+        let mut r = new_renderer();
+        ready(&mut r);
+        let (w, h) = (40u32, 30u32);
+        let n = (w * h) as usize;
+        let (mut rgba, mut depth) = (vec![0f32; 4 * n], vec![0f32; n]);
+        let control = new_render_control();
+        r.set_render_control(&control);
+        r.render(w, h, &[], &mut rgba, &mut depth).unwrap();
+        assert_eq!(control.fraction(), 1.0);
+        let stop = new_render_control();
+        stop.cancel();
+        r.set_render_control(&stop);
+        let e = r.render(w, h, &[], &mut rgba, &mut depth).unwrap_err();
+        assert!(stop.cancelled() && e.contains("cancelled"), "{e}");
     }
 
     #[test]

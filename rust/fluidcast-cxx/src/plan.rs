@@ -152,6 +152,7 @@ pub(crate) fn plan_of(
         },
         lod: (s.lod_tolerance > 0.0).then_some(s.lod_tolerance),
         march,
+        work_limit: (s.work_limit > 0.0).then_some(s.work_limit),
     })
 }
 
@@ -252,6 +253,7 @@ pub(crate) fn property(e: &BackendError, s: &ffi::Settings) -> Option<String> {
         PlanItem::Tiles => format!("MemoryLimit {} MiB", s.memory_limit_mib),
         PlanItem::Surfaces => "iso-surfaces (the iso-surface blend mode)".to_string(),
         PlanItem::Mode => "the field (RBF)".to_string(),
+        PlanItem::Work => "WorkLimit".to_string(),
     })
 }
 

@@ -140,6 +140,9 @@ pub fn render_adaptive(
     let lookup = TfLookup::new(tf);
     let mut cast = |p: &RenderParams, image: &mut Image| {
         stats.samples += cast_planned(&grid, &plan, &lookup, p, image);
+        if crate::progress::cancelled(p.progress.as_deref()) {
+            return Err(RenderError::Cancelled);
+        }
         Ok::<_, RenderError>(())
     };
     let mut image = Image::new(params.width, params.height);
@@ -196,9 +199,18 @@ fn cast_planned(
             })
         })
     };
+    let progress = params.progress.as_deref();
+    if let Some(p) = progress {
+        p.add_total(grid.bundle_count() as u64);
+    }
     let results: Vec<BundleResult> = (0..grid.bundle_count())
         .into_par_iter()
-        .filter(|&b| !grid.bundle_cells(b).is_empty() && casts(b))
+        .filter(|&b| {
+            if let Some(p) = progress {
+                p.step();
+            }
+            !crate::progress::cancelled(progress) && !grid.bundle_cells(b).is_empty() && casts(b)
+        })
         .map_init(
             || BundleScratch::new(grid.params.bundle as usize, dz),
             |scratch, b| cast_bundle(grid, plan, depths, lookup, params, b, scratch),

@@ -26,6 +26,7 @@ mod object_space;
 mod overlay;
 mod perspective;
 pub mod precision;
+mod progress;
 mod raycast;
 mod rbf;
 mod reference;
@@ -46,6 +47,7 @@ pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, Sampli
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};
+pub use progress::Progress;
 pub use rbf::{
     mix32, rbf_step_checked, render_rbf, white_offset, Noise, RbfRenderParams, RbfShadows, HASH_IN,
     HASH_MUL, HASH_SEED, MAX_OPTICAL_DEPTH, MAX_RBF_STEPS, PICK_STREAM, SHADOW_STREAM,
@@ -119,6 +121,9 @@ pub struct RenderParams {
     /// columns is not resampled once every pixel that reads it has stopped (early ray
     /// termination at `min_transmittance`), which changes no pixel. Off: for measuring it.
     pub occlusion_culling: bool,
+    /// Where the ray cast reports its progress and looks for a request to stop (`None`:
+    /// nobody watches). The adaptive and reference renderers on the CPU honour it.
+    pub progress: Option<Arc<Progress>>,
 }
 
 impl RenderParams {
@@ -177,6 +182,7 @@ impl Default for RenderParams {
             surfaces: None,
             volume_lighting: None,
             occlusion_culling: true,
+            progress: None,
         }
     }
 }
@@ -184,6 +190,9 @@ impl Default for RenderParams {
 /// Why a rendering could not be made.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
+    /// The caller cancelled the render ([`Progress::cancel`]).
+    #[error("cancelled")]
+    Cancelled,
     /// The camera cannot see.
     #[error("camera: {0}")]
     Camera(#[from] CameraError),

@@ -337,9 +337,19 @@ pub fn render_reference(
         ..Default::default()
     };
     let caster = TileCaster::new(params, &frame, tf, &depths, (particles, &lit_volume))?;
+    let progress = params.progress.as_deref();
+    if let Some(p) = progress {
+        p.add_total(bins.len() as u64);
+    }
     let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()
+        .filter(|_| {
+            if let Some(p) = progress {
+                p.step();
+            }
+            !crate::progress::cancelled(progress)
+        })
         .map(|(t, list)| {
             let (tx, ty) = (t as u32 % tiles_x, t as u32 / tiles_x);
             let pixels = (
@@ -350,6 +360,9 @@ pub fn render_reference(
             (t as u32, out, samples)
         })
         .collect();
+    if crate::progress::cancelled(progress) {
+        return Err(RenderError::Cancelled);
+    }
     stats.samples += paste_tiles(&mut image, results, tiles_x, params.surfaces.is_some());
     stats.stages.push(("raycast", ms(t1)));
     stats.stages.push(("total", ms(t0)));

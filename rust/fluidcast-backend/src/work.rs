@@ -1,0 +1,122 @@
+//! The work a frame will take, estimated before it runs, and the limit above which a render
+//! is refused with a message rather than run for minutes (a support radius typed 1000 times
+//! too large, a camera inside the fluid at 4K).
+//!
+//! The estimate counts kernel evaluations at full rate: a particle of support radius H at
+//! view depth z covers a disc of r = H / (pixel size at z) pixels, and each ray through it
+//! takes about 2 r × sampling scale depth samples inside its support, so it costs
+//! min(π r², pixels) × max(1, 2 r s) evaluations. The adaptive plan only ever samples less.
+
+use rayon::prelude::*;
+
+use fluidcast_render::RenderParams;
+use fluidcast_sph::Particles;
+use fluidcast_view::Camera;
+
+use crate::BackendError;
+
+/// The default limit on a frame's estimated kernel evaluations ([`estimate`]): 5·10^10,
+/// about 10 s of the CPU renderer on 2 cores (measured: estimates of 3·10^8, 2.9·10^9 and
+/// 1.8·10^10 rendered in 0.5, 0.8 and 3.6 s; docs/performance.md). Real frames stay far
+/// below it: a few pixels a particle is about 10^2 evaluations each, 10^9 for ten million.
+pub const DEFAULT_WORK_LIMIT: f64 = 5e10;
+
+/// Estimated kernel evaluations of a full-rate render of `particles` seen by `camera` with
+/// `params` (size, sampling scale); see the module's description.
+pub fn estimate(
+    particles: &Particles,
+    camera: &Camera,
+    params: &RenderParams,
+) -> Result<f64, BackendError> {
+    let frame = camera.frame(params.width, params.height)?;
+    let pixels = f64::from(params.width) * f64::from(params.height);
+    let (eye, forward) = (frame.eye.to_array(), frame.forward.to_array());
+    let s = params.sampling_scale;
+    Ok(particles
+        .positions
+        .par_iter()
+        .zip(particles.radii.par_iter())
+        .map(|(p, &h)| {
+            let h = f64::from(h);
+            let z: f64 = (0..3)
+                .map(|k| (f64::from(p[k]) - eye[k]) * forward[k])
+                .sum();
+            if frame.parallel.is_none() && z + h <= 0.0 {
+                return 0.0; // behind the eye
+            }
+            // A support around the eye covers the screen: its depth is taken as H.
+            let r = h / frame.pixel_size_at(z.max(h));
+            (std::f64::consts::PI * r * r).min(pixels) * (2.0 * r * s).max(1.0)
+        })
+        .sum())
+}
+
+/// Refuses a frame whose [`estimate`] exceeds `limit`, saying how much it needs and what
+/// usually causes it.
+pub fn check(
+    particles: &Particles,
+    camera: &Camera,
+    params: &RenderParams,
+    limit: f64,
+) -> Result<(), BackendError> {
+    let work = estimate(particles, camera, params)?;
+    if work <= limit {
+        return Ok(());
+    }
+    let largest = particles.radii.iter().copied().fold(0.0f32, f32::max);
+    Err(BackendError::Refused {
+        item: crate::PlanItem::Work,
+        why: format!(
+            "this view needs about {work:.1e} kernel evaluations ({} particles, the largest \
+             support radius {largest:e} world units), more than the limit of {limit:.1e}: check \
+             the support radius and the camera, or raise the limit",
+            particles.len()
+        ),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One particle of radius `h` at distance 10 in front of a 90° camera.
+    fn single(h: f32) -> (Particles, Camera) {
+        let mut p = Particles::default();
+        p.positions.push([0.0, 0.0, 0.0]);
+        p.radii.push(h);
+        p.volumes.push(1.0);
+        p.masses.push(1.0);
+        p.values.push(1.0);
+        let camera = Camera {
+            position: [0.0, 0.0, 10.0],
+            focal_point: [0.0, 0.0, 0.0],
+            view_up: [0.0, 1.0, 0.0],
+            view_angle: 90.0,
+            ..Camera::default()
+        };
+        (p, camera)
+    }
+
+    #[test]
+    fn a_disc_of_pixels_times_the_samples_through_it() {
+        let params = RenderParams {
+            width: 100,
+            height: 100,
+            ..Default::default()
+        };
+        // At depth 10 with 90°, the screen spans 20 units: 0.2 units a pixel; H = 1 is 5 px.
+        let (p, cam) = single(1.0);
+        let r: f64 = 5.0;
+        let want = std::f64::consts::PI * r * r * 2.0 * r;
+        let got = estimate(&p, &cam, &params).unwrap();
+        assert!((got / want - 1.0).abs() < 1e-6, "{got} vs {want}");
+        // A radius 100 times larger covers the screen: pixels × samples, not r².
+        let (p, cam) = single(100.0);
+        let got = estimate(&p, &cam, &params).unwrap();
+        assert!(got <= 1e4 * 2.0 * 100.0 / 0.2 * 1.01, "{got}");
+        assert!(got > 7e5, "{got}");
+        let e = check(&p, &cam, &params, 1e5).unwrap_err().to_string();
+        assert!(e.contains("needs about 7.9e5 kernel evaluations"), "{e}");
+        assert!(check(&p, &cam, &params, 1e7).is_ok());
+    }
+}
