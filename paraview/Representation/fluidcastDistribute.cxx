@@ -17,6 +17,7 @@
 #include "vtkUnsignedCharArray.h"
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstring>
 #include <limits>
@@ -70,7 +71,9 @@ vtkSmartPointer<vtkPolyData> Subset(vtkPointSet* input, const std::vector<vtkIdT
   return out;
 }
 
-/** Global min and max of each coordinate over `ids` of every rank (invalid box: none). */
+/** Global min and max of each coordinate over the finite points of `ids` of every rank
+ * (invalid box: none). A point with an infinite or NaN coordinate is left out, as the renderer
+ * leaves it out: the box ParaView composites by stays finite. */
 vtkBoundingBox GlobalBounds(
   vtkPointSet* input, const std::vector<vtkIdType>& ids, vtkMultiProcessController* c)
 {
@@ -79,6 +82,10 @@ vtkBoundingBox GlobalBounds(
   for (vtkIdType i : ids)
   {
     const double* x = input->GetPoint(i);
+    if (!(std::isfinite(x[0]) && std::isfinite(x[1]) && std::isfinite(x[2])))
+    {
+      continue;
+    }
     for (int k = 0; k < 3; ++k)
     {
       local[k] = std::min(local[k], x[k]);

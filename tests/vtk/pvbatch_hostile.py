@@ -78,6 +78,8 @@ def with_point(p):
 in_memory = [
     ("far_outlier", polydata(with_point([0, -1e14, 0]), {"q": np.ones(65)}), False, {}),
     ("near_float_max", polydata(with_point([3e38, 0, 0]), {"q": np.ones(65)}), False, {}),
+    # One infinite point among good ones: left out of the bounds, so the camera stays finite.
+    ("one_inf_point", polydata(with_point([np.inf, 0, 0]), {"q": np.ones(65)}), False, {}),
     # ParaView draws nothing for data without finite bounds: no mapper call, no error.
     ("all_nan", polydata(np.full((8, 3), np.nan), {"q": np.ones(8)}), False, {}),
     ("zero_radius", polydata(lattice, {"q": ones, "h": np.zeros(64)}), True,
@@ -119,6 +121,7 @@ def damaged_files():
     return paths
 
 
+failures = []
 view = CreateView("RenderView")
 view.ViewSize = [64, 48]
 view.OrientationAxesVisibility = 0
@@ -145,13 +148,15 @@ def show(source, name, settings):
     for k, v in settings.items():
         setattr(display, k, v)
     view.ResetCamera()
+    cam = view.GetActiveCamera()
+    if not all(np.isfinite([*cam.GetPosition(), *cam.GetFocalPoint()])):
+        failures.append(f"{name}: the camera is not finite after ResetCamera")
     Render(view)
     SaveScreenshot(os.path.join(out, name + ".png"), view, ImageResolution=[64, 48])
     Hide(source, view)
     Delete(source)
 
 
-failures = []
 for name, data, expect_error, settings in in_memory:
     before = len(messages.GetOutput())
     src = PVTrivialProducer()
