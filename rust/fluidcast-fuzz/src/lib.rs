@@ -18,6 +18,9 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 pub mod files;
 
@@ -198,12 +201,55 @@ pub fn parses_as(path: &Path) -> Option<&'static str> {
 /// renderer). A panic anywhere is returned as a [`Finding`].
 pub fn run_input(bytes: &[u8], ext: &str, render: bool) -> Result<Outcome, Finding> {
     catch_unwind(AssertUnwindSafe(|| run_unguarded(bytes, ext, render))).map_err(|p| Finding {
-        message: p
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-            .unwrap_or_else(|| "panic with a non-string payload".into()),
+        message: panic_message(p.as_ref()),
     })
+}
+
+/// The message of a caught panic.
+pub fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<String>()
+        .cloned()
+        .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_else(|| "panic with a non-string payload".into())
+}
+
+/// When the input (or case) now running started, for [`watchdog`].
+pub struct Watch {
+    t0: Instant,
+    started_ms: Arc<AtomicU64>,
+}
+
+impl Watch {
+    /// An input starts.
+    pub fn start(&self) {
+        let now = self.t0.elapsed().as_millis() as u64;
+        self.started_ms.store(now, Ordering::Relaxed);
+    }
+
+    /// It ended.
+    pub fn stop(&self) {
+        self.started_ms.store(u64::MAX, Ordering::Relaxed);
+    }
+}
+
+/// A thread that, when one input runs longer than `hang`, calls `on_hang` (which keeps the
+/// input and says where) and ends the process with exit code 3.
+pub fn watchdog(hang: Duration, on_hang: impl Fn() + Send + 'static) -> Watch {
+    let watch = Watch {
+        t0: Instant::now(),
+        started_ms: Arc::new(AtomicU64::new(u64::MAX)),
+    };
+    let (t0, started) = (watch.t0, watch.started_ms.clone());
+    std::thread::spawn(move || loop {
+        std::thread::sleep(Duration::from_millis(500));
+        let s = started.load(Ordering::Relaxed);
+        let now = t0.elapsed().as_millis() as u64;
+        if s != u64::MAX && now.saturating_sub(s) > hang.as_millis() as u64 {
+            on_hang();
+            std::process::exit(3);
+        }
+    });
+    watch
 }
 
 fn run_unguarded(bytes: &[u8], ext: &str, render: bool) -> Outcome {

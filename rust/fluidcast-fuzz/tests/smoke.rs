@@ -8,15 +8,15 @@
 use std::path::PathBuf;
 use std::process::Command;
 
-#[test]
-fn twenty_thousand_mutants_without_a_crash() {
+/// Runs fuzzer `bin` with `args` on the fixtures under a 4 GiB address-space limit, into a
+/// folder of its own; its output, which must end with exit code 0.
+fn run_capped(bin: &str, args: &str) -> String {
     let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures");
     let out = tempfile::tempdir().unwrap();
     let o = Command::new("sh")
         .arg("-c")
         .arg(format!(
-            "ulimit -v 4194304; exec '{}' --inputs 20000 --seed 7 --render-every 20 --out '{}' '{}'",
-            env!("CARGO_BIN_EXE_fluidcast-fuzz"),
+            "ulimit -v 4194304; exec '{bin}' {args} --out '{}' '{}'",
             out.path().display(),
             fixtures.display()
         ))
@@ -24,7 +24,16 @@ fn twenty_thousand_mutants_without_a_crash() {
         .unwrap();
     let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
     println!("{text}");
-    assert_eq!(o.status.code(), Some(0), "fuzz smoke run failed:\n{text}");
+    assert_eq!(o.status.code(), Some(0), "{bin} {args} failed:\n{text}");
+    text
+}
+
+#[test]
+fn twenty_thousand_mutants_without_a_crash() {
+    let text = run_capped(
+        env!("CARGO_BIN_EXE_fluidcast-fuzz"),
+        "--inputs 20000 --seed 7 --render-every 20",
+    );
     assert!(
         text.contains("20000 inputs in") && text.contains(", 0 findings"),
         "{text}"
@@ -53,24 +62,9 @@ fn twenty_thousand_mutants_without_a_crash() {
 /// than 10 s (a FIFO read, a cycle followed) fails it. Long runs: `scripts/fuzz.sh --files`.
 #[test]
 fn three_thousand_file_graphs_without_a_crash() {
-    let fixtures = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures");
-    let out = tempfile::tempdir().unwrap();
-    let o = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 4194304; exec '{}' --cases 3000 --seed 7 --out '{}' '{}'",
-            env!("CARGO_BIN_EXE_fluidcast-fuzz-files"),
-            out.path().display(),
-            fixtures.display()
-        ))
-        .output()
-        .unwrap();
-    let text = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
-    println!("{text}");
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "multi-file fuzz smoke run failed:\n{text}"
+    let text = run_capped(
+        env!("CARGO_BIN_EXE_fluidcast-fuzz-files"),
+        "--cases 3000 --seed 7",
     );
     let last = text.lines().rev().find(|l| l.contains("cases in")).unwrap();
     assert!(

@@ -10,12 +10,10 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use fluidcast_fuzz::files::{generate, open_and_render};
-use fluidcast_fuzz::{parses_as, seeds, Rng};
+use fluidcast_fuzz::{panic_message, parses_as, seeds, watchdog, Rng};
 
 /// A case taking longer than this counts as a hang.
 const HANG: Duration = Duration::from_secs(10);
@@ -71,23 +69,6 @@ fn main() {
     }
 }
 
-/// Ends the process with exit code 3, leaving the case's folder, when a case runs too long.
-fn watchdog(started_ms: Arc<AtomicU64>, case: PathBuf) {
-    let t0 = Instant::now();
-    std::thread::spawn(move || loop {
-        std::thread::sleep(Duration::from_millis(500));
-        let s = started_ms.load(Ordering::Relaxed);
-        let now = t0.elapsed().as_millis() as u64;
-        if s != u64::MAX && now.saturating_sub(s) > HANG.as_millis() as u64 {
-            eprintln!(
-                "HANG: a case ran longer than {HANG:?}; kept in {}",
-                case.display()
-            );
-            std::process::exit(3);
-        }
-    });
-}
-
 fn run() -> Result<u64, String> {
     let a = parse_args()?;
     let mut pieces = Vec::new();
@@ -111,8 +92,13 @@ fn run() -> Result<u64, String> {
     );
     std::panic::set_hook(Box::new(|_| {})); // panics are counted, not printed
     let case = a.out.join("case");
-    let started = Arc::new(AtomicU64::new(u64::MAX));
-    watchdog(started.clone(), case.clone());
+    let kept = case.clone();
+    let watch = watchdog(HANG, move || {
+        eprintln!(
+            "HANG: a case ran longer than {HANG:?}; kept in {}",
+            kept.display()
+        );
+    });
     let t0 = Instant::now();
     let mut rng = Rng::new(a.seed);
     let (mut rendered, mut refused, mut findings) = (0u64, 0u64, 0u64);
@@ -122,7 +108,7 @@ fn run() -> Result<u64, String> {
         std::fs::create_dir_all(&case).map_err(|e| format!("{}: {e}", case.display()))?;
         let graph =
             generate(&mut rng, &case, &pieces).map_err(|e| format!("writing a case: {e}"))?;
-        started.store(t0.elapsed().as_millis() as u64, Ordering::Relaxed);
+        watch.start();
         match catch_unwind(AssertUnwindSafe(|| open_and_render(&graph.root))) {
             Ok(true) => rendered += 1,
             Ok(false) => refused += 1,
@@ -131,11 +117,7 @@ fn run() -> Result<u64, String> {
                 let kept = a.out.join(format!("panic-{findings}"));
                 let _ = std::fs::remove_dir_all(&kept);
                 let _ = std::fs::rename(&case, &kept);
-                let message = p
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default();
+                let message = panic_message(p.as_ref());
                 println!(
                     "PANIC opening {} ({}): {message} (kept in {})",
                     graph.root.display(),
@@ -144,7 +126,7 @@ fn run() -> Result<u64, String> {
                 );
             }
         }
-        started.store(u64::MAX, Ordering::Relaxed);
+        watch.stop();
         if last_report.elapsed() > Duration::from_secs(5) || i + 1 == a.cases {
             last_report = Instant::now();
             let s = t0.elapsed().as_secs_f64();

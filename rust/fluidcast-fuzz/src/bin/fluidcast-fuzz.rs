@@ -9,11 +9,9 @@
 //! every 5 s; exit code 1 when anything was found.
 
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use fluidcast_fuzz::{image_seeds, mutate, parses_as, run_input, seeds, Outcome, Rng};
+use fluidcast_fuzz::{image_seeds, mutate, parses_as, run_input, seeds, watchdog, Outcome, Rng};
 
 /// An input taking longer than this counts as a hang.
 const HANG: Duration = Duration::from_secs(10);
@@ -67,24 +65,6 @@ fn main() {
     }
 }
 
-/// Aborts the process, leaving the input in place, when one input runs too long.
-fn watchdog(started_ms: Arc<AtomicU64>, out: PathBuf) {
-    let t0 = Instant::now();
-    std::thread::spawn(move || loop {
-        std::thread::sleep(Duration::from_millis(500));
-        let s = started_ms.load(Ordering::Relaxed);
-        let now = t0.elapsed().as_millis() as u64;
-        if s != u64::MAX && now.saturating_sub(s) > HANG.as_millis() as u64 {
-            let _ = std::fs::copy(out.join("current.bin"), out.join("hang.bin"));
-            eprintln!(
-                "HANG: an input ran longer than {HANG:?}; saved as {}",
-                out.join("hang.bin").display()
-            );
-            std::process::exit(3);
-        }
-    });
-}
-
 fn run() -> Result<u64, String> {
     let a = parse_args()?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
@@ -103,8 +83,14 @@ fn run() -> Result<u64, String> {
         a.render_every
     );
     std::panic::set_hook(Box::new(|_| {})); // panics are counted, not printed
-    let started = Arc::new(AtomicU64::new(u64::MAX));
-    watchdog(started.clone(), a.out.clone());
+    let out = a.out.clone();
+    let watch = watchdog(HANG, move || {
+        let _ = std::fs::copy(out.join("current.bin"), out.join("hang.bin"));
+        eprintln!(
+            "HANG: an input ran longer than {HANG:?}; saved as {}",
+            out.join("hang.bin").display()
+        );
+    });
     let t0 = Instant::now();
     let mut rng = Rng::new(a.seed);
     let (mut accepted, mut refused, mut findings) = (0u64, 0u64, 0u64);
@@ -117,7 +103,7 @@ fn run() -> Result<u64, String> {
         let ext = parses_as(path).unwrap_or("vtu");
         let input = mutate(seed, &mut rng);
         std::fs::write(&current, &input).map_err(|e| format!("{}: {e}", current.display()))?;
-        started.store(t0.elapsed().as_millis() as u64, Ordering::Relaxed);
+        watch.start();
         let render = a.render_every > 0 && i % a.render_every == 0;
         match run_input(&input, ext, render) {
             Ok(Outcome::Accepted) => accepted += 1,
@@ -134,7 +120,7 @@ fn run() -> Result<u64, String> {
                 );
             }
         }
-        started.store(u64::MAX, Ordering::Relaxed);
+        watch.stop();
         if last_report.elapsed() > Duration::from_secs(5) || i + 1 == a.inputs {
             last_report = Instant::now();
             let s = t0.elapsed().as_secs_f64();
