@@ -1,3 +1,5 @@
+use std::ops::ControlFlow;
+
 use rayon::prelude::*;
 
 /// A uniform world-space grid over particle positions for fixed-radius neighbour queries.
@@ -73,6 +75,36 @@ impl<'a> NeighbourGrid<'a> {
     /// Calls `f(index, squared distance)` for every particle within `radius` of `x`.
     #[inline]
     pub fn for_each_near(&self, x: [f32; 3], radius: f32, mut f: impl FnMut(u32, f32)) {
+        self.try_for_each_near(x, radius, |j, d2| {
+            f(j, d2);
+            ControlFlow::Continue(())
+        });
+    }
+
+    /// `Σ weights[k]` over the particles k within `radius` of `x`, counted up to `cap`: the
+    /// search stops there, so that a clump of near-coincident particles costs each of its
+    /// members `cap` candidates, not the clump's size.
+    pub fn weight_near(&self, x: [f32; 3], radius: f32, weights: &[u32], cap: u64) -> u64 {
+        let mut n = 0u64;
+        self.try_for_each_near(x, radius, |k, _| {
+            n += u64::from(weights[k as usize]);
+            if n >= cap {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        });
+        n.min(cap)
+    }
+
+    /// [`NeighbourGrid::for_each_near`] that stops when `f` breaks.
+    #[inline]
+    pub fn try_for_each_near(
+        &self,
+        x: [f32; 3],
+        radius: f32,
+        mut f: impl FnMut(u32, f32) -> ControlFlow<()>,
+    ) {
         let r2 = radius * radius;
         let mut lo = [0usize; 3];
         let mut hi = [0usize; 3];
@@ -94,8 +126,8 @@ impl<'a> NeighbourGrid<'a> {
                     let p = self.positions[j as usize];
                     let d = [p[0] - x[0], p[1] - x[1], p[2] - x[2]];
                     let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                    if d2 < r2 {
-                        f(j, d2);
+                    if d2 < r2 && f(j, d2).is_break() {
+                        return;
                     }
                 }
             }
