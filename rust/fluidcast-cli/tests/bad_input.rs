@@ -361,8 +361,21 @@ fn huge_images_are_refused_before_allocating() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o.png");
     let (o, s) = (out.to_str().unwrap(), sample.to_str().unwrap());
-    // 16384x8192 passes the size check but needs more than the 4 GiB a user allows.
-    let (code, err) = run_limited(4 << 20, &["render", s, "-o", o, "--size", "16384x8192"]);
+    // 16384x8192 passes the size check but needs more than the 4 GiB a user allows (and
+    // more work than the default limit: off, so that the memory check is what answers).
+    let (code, err) = run_limited(
+        4 << 20,
+        &[
+            "render",
+            s,
+            "-o",
+            o,
+            "--size",
+            "16384x8192",
+            "--max-work",
+            "off",
+        ],
+    );
     assert_eq!(code, 1, "{err}");
     assert!(
         err.contains("a 16384x8192 render needs") && err.contains("GiB"),
@@ -380,6 +393,8 @@ fn huge_images_are_refused_before_allocating() {
             "4096x4096",
             "--array",
             "velocity",
+            "--max-work",
+            "off",
         ],
     );
     assert_eq!(code, 1, "{err}");
