@@ -27,11 +27,10 @@
 #include "fluidcast-cxx/src/lib.rs.h"
 
 #include <algorithm>
-#include <atomic>
-#include <exception>
 #include <functional>
-#include <thread>
+#include <future>
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -361,6 +360,49 @@ FLUIDCAST_CHECKED_SETTER(RBFStep, double)
 FLUIDCAST_CHECKED_SETTER(ShadowSamples, int)
 FLUIDCAST_CHECKED_SETTER(IsoSurfaceOpacity, double)
 #undef FLUIDCAST_CHECKED_SETTER
+
+//------------------------------------------------------------------------------
+bool vtkFluidCastVolumeMapper::AcceptName(
+  const char* property, const char* value, const char* kept)
+{
+  try
+  {
+    fluidcast::check_name(property, value ? value : "");
+    return true;
+  }
+  catch (const rust::Error& e)
+  {
+    vtkErrorMacro(<< e.what() << "; " << property << " stays '" << (kept ? kept : "") << "'");
+    return false;
+  }
+}
+
+// The named setters: vtkSetStringMacro's assignment after the bridge's check of the name.
+#define FLUIDCAST_CHECKED_NAME_SETTER(name)                                                      \
+  void vtkFluidCastVolumeMapper::Set##name(const char* value)                                  \
+  {                                                                                            \
+    const bool same = (!value && !this->name) ||                                               \
+      (value && this->name && std::strcmp(value, this->name) == 0);                            \
+    if (same || !this->AcceptName(#name, value, this->name))                                   \
+    {                                                                                          \
+      return;                                                                                  \
+    }                                                                                          \
+    delete[] this->name;                                                                       \
+    this->name = nullptr;                                                                      \
+    if (value)                                                                                 \
+    {                                                                                          \
+      const size_t n = std::strlen(value) + 1;                                                 \
+      this->name = new char[n];                                                                \
+      std::memcpy(this->name, value, n);                                                       \
+    }                                                                                          \
+    this->Modified();                                                                          \
+  }
+FLUIDCAST_CHECKED_NAME_SETTER(Kernel)
+FLUIDCAST_CHECKED_NAME_SETTER(Field)
+FLUIDCAST_CHECKED_NAME_SETTER(RBFClassification)
+FLUIDCAST_CHECKED_NAME_SETTER(Mode)
+FLUIDCAST_CHECKED_NAME_SETTER(RBFNoise)
+#undef FLUIDCAST_CHECKED_NAME_SETTER
 
 //------------------------------------------------------------------------------
 namespace
@@ -900,40 +942,24 @@ bool vtkFluidCastVolumeMapper::RenderWatched(
 {
   // The frame renders on a worker thread while this (VTK's) thread reports its progress
   // (ProgressEvent) and polls VTK's abort check (an interactor's pending events set
-  // AbortRender): a long frame can be interrupted, as VTK's own ray casters can.
+  // AbortRender): a long frame can be interrupted, as VTK's own ray casters can. The wait
+  // ends as soon as the frame is done (a future, not a fixed sleep).
   rust::Box<fluidcast::RenderControl> control = fluidcast::new_render_control();
   this->Impl->Renderer->set_render_control(*control);
-  std::exception_ptr failed;
-  std::atomic<bool> done{ false };
-  std::thread worker([&]() {
-    try
-    {
-      render();
-    }
-    catch (...)
-    {
-      failed = std::current_exception();
-    }
-    done = true;
-  });
-  while (!done)
+  std::future<void> frame = std::async(std::launch::async, render);
+  while (frame.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready)
   {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    if (!done && win && win->CheckAbortStatus())
+    if (win && win->CheckAbortStatus())
     {
       control->cancel();
     }
     this->UpdateProgress(control->fraction());
   }
-  worker.join();
   if (control->cancelled())
   {
     return false;
   }
-  if (failed)
-  {
-    std::rethrow_exception(failed);
-  }
+  frame.get(); // rethrows the render's error
   return true;
 }
 

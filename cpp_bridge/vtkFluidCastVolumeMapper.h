@@ -88,7 +88,7 @@ public:
    * SPH kernel: "cubic" (default), "quintic", "wendland-c2", "wendland-c4", "poly6",
    * "gaussian" (as `fluidcast render --kernel`).
    */
-  vtkSetStringMacro(Kernel);
+  virtual void SetKernel(const char* value);
   vtkGetStringMacro(Kernel);
   /**
    * The name of kernel `index` in fluidcast's list (0 cubic, 1 quintic, 2 wendland-c2,
@@ -137,9 +137,9 @@ public:
    * the RBF field and the SPH fields alike (an SPH field is then marched the same stochastic
    * way, with the same passes, on the CPU: the GPU's march sums Gaussians).
    */
-  vtkSetStringMacro(Field);
+  virtual void SetField(const char* value);
   vtkGetStringMacro(Field);
-  vtkSetStringMacro(RBFClassification);
+  virtual void SetRBFClassification(const char* value);
   vtkGetStringMacro(RBFClassification);
   virtual void SetRBFRadius(double value);
   vtkGetMacro(RBFRadius, double);
@@ -248,7 +248,7 @@ public:
    * "perspective-grid" (Fraedrich et al. 2010, GridCell pixels per column, 1..64). GetModeName
    * gives the names by index (ParaView's FluidCastMode).
    */
-  vtkSetStringMacro(Mode);
+  virtual void SetMode(const char* value);
   vtkGetStringMacro(Mode);
   virtual void SetGridCell(int value);
   vtkGetMacro(GridCell, int);
@@ -325,7 +325,7 @@ public:
   vtkGetMacro(RBFStep, double);
   virtual void SetShadowSamples(int value);
   vtkGetMacro(ShadowSamples, int);
-  vtkSetStringMacro(RBFNoise);
+  virtual void SetRBFNoise(const char* value);
   vtkGetStringMacro(RBFNoise);
   ///@}
 
@@ -485,6 +485,8 @@ protected:
   vtkFluidCastVolumeMapper();
   /** CheckSetting, with a refusal reported as an error that names what is kept. */
   bool AcceptSetting(const char* property, double value, double kept);
+  /** Whether the named property `property` takes `value` (bridge check_name); an error if not. */
+  bool AcceptName(const char* property, const char* value, const char* kept);
   /**
    * Runs `render` (the bridge's render) on a worker thread while this thread reports its
    * progress (UpdateProgress) and polls `win`'s CheckAbortStatus, cancelling the render when

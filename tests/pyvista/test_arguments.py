@@ -11,8 +11,10 @@ import fluidcast
 import numpy as np
 import pytest
 import pyvista as pv
+from fluidcast import vtkFluidCastVolumeMapper
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from vtkmodules.vtkCommonCore import vtkCommand
 
 SIZE = (64, 48)
 
@@ -126,3 +128,27 @@ def test_read_says_what_a_path_is(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="not a regular file"):
         fluidcast.read(fifo)
+
+
+def test_the_mapper_refuses_a_bad_value_and_keeps_the_last_good_one():
+    """Set methods check their value (the library's table of settings, the bridge's names):
+    a refused value is a VTK error naming the property, and the mapper keeps what it had."""
+    _, volume = add()
+    m = volume.mapper
+    errors = []
+    m.AddObserver(vtkCommand.ErrorEvent, lambda *_: errors.append(True))
+    for setter, bad, getter, kept in [
+        (m.SetSupportRadius, math.inf, m.GetSupportRadius, 0.2),
+        (m.SetSupportRadius, -1.0, m.GetSupportRadius, 0.2),
+        (m.SetErrorTolerance, math.nan, m.GetErrorTolerance, 0.004),
+        (m.SetGridCell, 0, m.GetGridCell, 1),
+        (m.SetKernel, "nonsense", m.GetKernel, "cubic"),
+        (m.SetField, "nonsense", m.GetField, "csph"),
+        (m.SetMode, "fast", m.GetMode, "auto"),
+    ]:
+        errors.clear()
+        setter(bad)
+        assert errors, f"{setter.__name__}({bad!r}) was not refused"
+        assert getter() == kept, f"{setter.__name__}({bad!r}) left {getter()!r}"
+    assert vtkFluidCastVolumeMapper.CheckSetting("SupportRadius", math.inf) != ""
+    assert vtkFluidCastVolumeMapper.CheckSetting("SupportRadius", 0.5) == ""

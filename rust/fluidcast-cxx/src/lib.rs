@@ -270,6 +270,9 @@ mod ffi {
         /// ErrorTolerance, ...) where the library's one table of settings does: the error
         /// says what the property takes. The mapper's setters call it.
         fn check_setting(property: &str, value: f64) -> Result<()>;
+        /// Refuses a name the mapper's named property (Kernel, Field, Mode,
+        /// RBFClassification, RBFNoise) does not take, as `configure` would.
+        fn check_name(property: &str, value: &str) -> Result<()>;
 
         /// The renderer: holds the particle data, settings, camera and transfer function,
         /// and the opened backend (a GPU device lives as long as the renderer).
@@ -430,6 +433,10 @@ fn check_settings(s: &ffi::Settings) -> Result<(), String> {
         fluidcast_backend::check_property(property, v).map_err(|e| e.to_string())?;
     }
     Ok(())
+}
+
+fn check_name(property: &str, value: &str) -> Result<(), String> {
+    guarded("check_name", || plan::check_name(property, value))
 }
 
 fn check_setting(property: &str, value: f64) -> Result<(), String> {

@@ -51,6 +51,37 @@ fn noise(name: &str) -> Result<Noise, String> {
     }
 }
 
+/// Refuses a name the mapper's named property `property` does not take (Kernel, Field,
+/// Mode, RBFClassification, RBFNoise), by the parsers `configure` uses; "" takes the default.
+pub(crate) fn check_name(property: &str, value: &str) -> Result<(), String> {
+    let known = |names: Vec<String>| {
+        let v = value.trim().to_ascii_lowercase();
+        if v.is_empty() || names.iter().any(|n| *n == v) {
+            Ok(())
+        } else {
+            Err(format!(
+                "{property} '{value}': expected one of {}",
+                names.join(", ")
+            ))
+        }
+    };
+    match property {
+        "Kernel" => value
+            .parse::<fluidcast_sph::Kernel>()
+            .map(|_| ())
+            .map_err(|e| format!("{property} '{value}': {e}")),
+        "Field" => check_field(value).map_err(|e| format!("{property}: {e}")),
+        "Mode" => Mode::parse(value, 1)
+            .map(|_| ())
+            .map_err(|e| format!("{property}: {e}")),
+        "RBFClassification" => known(CLASSIFICATION_NAMES.map(str::to_string).to_vec()),
+        "RBFNoise" => noise(value)
+            .map(|_| ())
+            .map_err(|e| format!("{property}: {e}")),
+        _ => Err(format!("no named setting '{property}'")),
+    }
+}
+
 /// The most screen tiles a view may be split into (the CLI's `--tiles` limit).
 const MAX_TILES: u32 = 65536;
 
