@@ -56,7 +56,7 @@ fn noise(name: &str) -> Result<Noise, String> {
 pub(crate) fn check_name(property: &str, value: &str) -> Result<(), String> {
     let known = |names: Vec<String>| {
         let v = value.trim().to_ascii_lowercase();
-        if v.is_empty() || names.iter().any(|n| *n == v) {
+        if v.is_empty() || names.contains(&v) {
             Ok(())
         } else {
             Err(format!(
