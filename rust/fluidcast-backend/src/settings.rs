@@ -420,6 +420,7 @@ mod tests {
         assert!(scale.check(0.0).is_err() && scale.check(1e-30).is_ok());
         let e = Setting::by_property("ErrorTolerance").unwrap();
         assert!(e.check(1.0).is_ok() && e.check(1.0 + 1e-9).is_err());
+        assert!(e.check(0.0).is_ok() && e.check(-0.5).is_err());
         let d = Setting::by_property("DepthSamples").unwrap();
         assert!(d.check(16.0).is_ok() && d.check(12.0).is_err() && d.check(128.0).is_err());
         let cell = Setting::by_property("GridCell").unwrap();

@@ -110,6 +110,25 @@ mod tests {
         let want = std::f64::consts::PI * r * r * 2.0 * r;
         let got = estimate(&p, &cam, &params).unwrap();
         assert!((got / want - 1.0).abs() < 1e-6, "{got} vs {want}");
+        // Twice the depth samples per pixel footprint: twice the samples through it.
+        let fine = RenderParams {
+            sampling_scale: 2.0,
+            ..params.clone()
+        };
+        let got = estimate(&p, &cam, &fine).unwrap();
+        assert!(
+            (got / (2.0 * want) - 1.0).abs() < 1e-6,
+            "{got} vs {}",
+            2.0 * want
+        );
+        // Behind the eye (depth -11, its support ending 10 before the eye): no work.
+        let mut behind = p.clone();
+        behind.positions[0] = [0.0, 0.0, 21.0];
+        assert_eq!(estimate(&behind, &cam, &params).unwrap(), 0.0);
+        // Centre just behind the eye (depth -0.5), support reaching in front: it covers the
+        // screen.
+        behind.positions[0] = [0.0, 0.0, 10.5];
+        assert!(estimate(&behind, &cam, &params).unwrap() >= 1e4);
         // A radius 100 times larger covers the screen: pixels × samples, not r².
         let (p, cam) = single(100.0);
         let got = estimate(&p, &cam, &params).unwrap();
