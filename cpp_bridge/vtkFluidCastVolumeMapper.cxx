@@ -30,7 +30,6 @@
 #include <functional>
 #include <future>
 #include <chrono>
-#include <cstring>
 #include <cmath>
 #include <limits>
 #include <sstream>
@@ -377,25 +376,12 @@ bool vtkFluidCastVolumeMapper::AcceptName(
   }
 }
 
-// The named setters: vtkSetStringMacro's assignment after the bridge's check of the name.
+// The named setters: vtkSetStringMacro's own body after the bridge's check of the name.
 #define FLUIDCAST_CHECKED_NAME_SETTER(name)                                                      \
   void vtkFluidCastVolumeMapper::Set##name(const char* value)                                  \
   {                                                                                            \
-    const bool same = (!value && !this->name) ||                                               \
-      (value && this->name && std::strcmp(value, this->name) == 0);                            \
-    if (same || !this->AcceptName(#name, value, this->name))                                   \
-    {                                                                                          \
-      return;                                                                                  \
-    }                                                                                          \
-    delete[] this->name;                                                                       \
-    this->name = nullptr;                                                                      \
-    if (value)                                                                                 \
-    {                                                                                          \
-      const size_t n = std::strlen(value) + 1;                                                 \
-      this->name = new char[n];                                                                \
-      std::memcpy(this->name, value, n);                                                       \
-    }                                                                                          \
-    this->Modified();                                                                          \
+    if (this->AcceptName(#name, value, this->name))                                            \
+    vtkSetStringBodyMacro(name, value)                                                         \
   }
 FLUIDCAST_CHECKED_NAME_SETTER(Kernel)
 FLUIDCAST_CHECKED_NAME_SETTER(Field)
@@ -469,21 +455,16 @@ namespace
  * is finite. */
 void FiniteBounds(vtkPointSet* input, double bounds[6])
 {
-  bool finite = true;
-  for (int k = 0; k < 6; ++k)
+  if (std::all_of(bounds, bounds + 6, [](double b) { return std::isfinite(b); }))
   {
-    finite = finite && std::isfinite(bounds[k]);
-  }
-  if (finite || !input || !input->GetPoints())
-  {
-    if (!finite)
-    {
-      vtkMath::UninitializeBounds(bounds);
-    }
     return;
   }
   vtkMath::UninitializeBounds(bounds);
-  vtkPoints* points = input->GetPoints();
+  vtkPoints* points = input ? input->GetPoints() : nullptr;
+  if (!points)
+  {
+    return;
+  }
   bool any = false;
   for (vtkIdType i = 0; i < points->GetNumberOfPoints(); ++i)
   {

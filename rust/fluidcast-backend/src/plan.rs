@@ -146,10 +146,9 @@ impl RenderPlan {
         let surfaces = self.params.surfaces.is_some() && self.march.is_none();
         let mode = match self.mode {
             Some(m) => m,
-            None if surfaces && backend != Backend::Gpu => {
-                return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
-            }
-            None if self.march.is_none() && self.params.volume_lighting.is_some() => {
+            None if (surfaces && backend != Backend::Gpu)
+                || (self.march.is_none() && self.params.volume_lighting.is_some()) =>
+            {
                 return (Mode::Reference, Some(REFERENCE_FOR_SURFACES));
             }
             None => Mode::Adaptive,

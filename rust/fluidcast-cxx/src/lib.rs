@@ -404,37 +404,6 @@ struct OpenBackend {
     renderer: fluidcast_backend::Renderer,
 }
 
-/// Every numeric setting of `s` by the library's table, as the mapper's setters checked them
-/// (a caller of the bridge other than the mapper gets the same refusals).
-fn check_settings(s: &ffi::Settings) -> Result<(), String> {
-    let values = [
-        ("SupportRadius", s.support_radius),
-        ("RadiusScale", s.radius_scale),
-        ("ErrorTolerance", s.error_tolerance),
-        ("MemoryLimit", s.memory_limit_mib),
-        ("WorkLimit", s.work_limit),
-        ("LODTolerance", s.lod_tolerance),
-        ("RBFRadius", s.rbf_radius),
-        ("SamplesPerPixel", f64::from(s.samples_per_pixel)),
-        ("ProgressivePasses", f64::from(s.progressive_passes)),
-        ("ShadowAmbient", s.shadow_ambient),
-        ("GridCell", f64::from(s.grid_cell)),
-        ("Tiles", f64::from(s.tiles)),
-        ("Relax", s.relax),
-        ("BundleSize", f64::from(s.bundle)),
-        ("DepthSamples", f64::from(s.depth_samples)),
-        ("SamplingScale", s.sampling_scale),
-        ("RBFSeed", f64::from(s.rbf_seed)),
-        ("RBFLeafSize", f64::from(s.rbf_leaf_size)),
-        ("RBFStep", s.rbf_step),
-        ("ShadowSamples", f64::from(s.shadow_samples)),
-    ];
-    for (property, v) in values {
-        fluidcast_backend::check_property(property, v).map_err(|e| e.to_string())?;
-    }
-    Ok(())
-}
-
 fn check_name(property: &str, value: &str) -> Result<(), String> {
     guarded("check_name", || plan::check_name(property, value))
 }
@@ -624,7 +593,6 @@ impl Renderer {
             plan::check_field(&s.field)?;
             plan::check_sampling(s)?;
             backend_of(s.backend)?;
-            check_settings(s)?;
             let same_particles = self.settings.as_ref().is_some_and(|o| {
                 o.scalars == s.scalars
                     && o.component == s.component

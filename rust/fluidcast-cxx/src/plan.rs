@@ -5,8 +5,7 @@ use std::sync::Arc;
 
 use fluidcast_backend::{
     AttributeMap, BackendError, Colouring, GridParams, March, Marched, Mode, Noise, PlanItem,
-    PlanParams, RbfOptions, RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles, MAX_CELL,
-    MAX_LEAF_SIZE,
+    PlanParams, RbfOptions, RbfRenderParams, RbfShadows, RenderParams, RenderPlan, Tiles,
 };
 use fluidcast_sph::FieldKind;
 use fluidcast_view::Camera;
@@ -82,48 +81,46 @@ pub(crate) fn check_name(property: &str, value: &str) -> Result<(), String> {
     }
 }
 
-/// The most screen tiles a view may be split into (the CLI's `--tiles` limit).
-const MAX_TILES: u32 = 65536;
+/// Every numeric setting of `s` by the library's table, as the mapper's setters checked them
+/// (a caller of the bridge other than the mapper gets the same refusals).
+pub(crate) fn check_settings(s: &ffi::Settings) -> Result<(), String> {
+    let values = [
+        ("SupportRadius", s.support_radius),
+        ("RadiusScale", s.radius_scale),
+        ("ErrorTolerance", s.error_tolerance),
+        ("MemoryLimit", s.memory_limit_mib),
+        ("WorkLimit", s.work_limit),
+        ("LODTolerance", s.lod_tolerance),
+        ("RBFRadius", s.rbf_radius),
+        ("SamplesPerPixel", f64::from(s.samples_per_pixel)),
+        ("ProgressivePasses", f64::from(s.progressive_passes)),
+        ("ShadowAmbient", s.shadow_ambient),
+        ("GridCell", f64::from(s.grid_cell)),
+        ("Tiles", f64::from(s.tiles)),
+        ("Relax", s.relax),
+        ("BundleSize", f64::from(s.bundle)),
+        ("DepthSamples", f64::from(s.depth_samples)),
+        ("SamplingScale", s.sampling_scale),
+        ("RBFSeed", f64::from(s.rbf_seed)),
+        ("RBFLeafSize", f64::from(s.rbf_leaf_size)),
+        ("RBFStep", s.rbf_step),
+        ("ShadowSamples", f64::from(s.shadow_samples)),
+    ];
+    for (property, v) in values {
+        fluidcast_backend::check_property(property, v).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
 
-/// Refuses a mode, grid cell or tile count the renderers do not take.
+/// Refuses a mode, grid cell, tile count or any other setting the renderers do not take:
+/// every numeric setting by the library's table ([`check_settings`], the ranges the mapper's
+/// setters already checked), then what the table does not hold.
 pub(crate) fn check_sampling(s: &ffi::Settings) -> Result<(), String> {
+    check_settings(s)?;
     Mode::parse(&s.mode, s.grid_cell)?;
-    if !(1..=MAX_CELL).contains(&s.grid_cell) {
-        return Err(format!(
-            "grid cell {}: must be 1..={MAX_CELL} pixels",
-            s.grid_cell
-        ));
-    }
-    if s.tiles > MAX_TILES {
-        return Err(format!("tiles {}: at most {MAX_TILES}", s.tiles));
-    }
     // The library's own checks, at configure time rather than at the first render.
     plan_params(s).validate().map_err(|e| e.to_string())?;
     grid_params(s).validate().map_err(|e| e.to_string())?;
-    if !(s.sampling_scale.is_finite() && s.sampling_scale > 0.0) {
-        return Err(format!(
-            "sampling scale {}: must be finite and > 0",
-            s.sampling_scale
-        ));
-    }
-    if !(1..=MAX_LEAF_SIZE).contains(&(s.rbf_leaf_size as usize)) {
-        return Err(format!(
-            "RBF leaf size {}: must be 1..={MAX_LEAF_SIZE}",
-            s.rbf_leaf_size
-        ));
-    }
-    if !s.rbf_step.is_finite() {
-        return Err(format!(
-            "RBF step {} is not finite (<= 0: automatic)",
-            s.rbf_step
-        ));
-    }
-    if !(1..=1024).contains(&s.shadow_samples) {
-        return Err(format!(
-            "shadow samples {}: must be 1..=1024",
-            s.shadow_samples
-        ));
-    }
     noise(&s.rbf_noise)?;
     Ok(())
 }

@@ -200,16 +200,11 @@ fn cast_planned(
         })
     };
     let progress = params.progress.as_deref();
-    if let Some(p) = progress {
-        p.add_total(grid.bundle_count() as u64);
-    }
+    crate::progress::start(progress, grid.bundle_count());
     let results: Vec<BundleResult> = (0..grid.bundle_count())
         .into_par_iter()
         .filter(|&b| {
-            if let Some(p) = progress {
-                p.step();
-            }
-            !crate::progress::cancelled(progress) && !grid.bundle_cells(b).is_empty() && casts(b)
+            crate::progress::next(progress) && !grid.bundle_cells(b).is_empty() && casts(b)
         })
         .map_init(
             || BundleScratch::new(grid.params.bundle as usize, dz),

@@ -50,3 +50,18 @@ impl Progress {
 pub(crate) fn cancelled(progress: Option<&Progress>) -> bool {
     progress.is_some_and(Progress::cancelled)
 }
+
+/// A renderer starts `units` units of work watched by `progress` (if any).
+pub(crate) fn start(progress: Option<&Progress>, units: usize) {
+    if let Some(p) = progress {
+        p.add_total(units as u64);
+    }
+}
+
+/// One unit comes up: counts it, and says whether to do it (false once cancelled).
+pub(crate) fn next(progress: Option<&Progress>) -> bool {
+    if let Some(p) = progress {
+        p.step();
+    }
+    !cancelled(progress)
+}

@@ -338,18 +338,11 @@ pub fn render_reference(
     };
     let caster = TileCaster::new(params, &frame, tf, &depths, (particles, &lit_volume))?;
     let progress = params.progress.as_deref();
-    if let Some(p) = progress {
-        p.add_total(bins.len() as u64);
-    }
+    crate::progress::start(progress, bins.len());
     let results: Vec<TileResult> = bins
         .par_iter()
         .enumerate()
-        .filter(|_| {
-            if let Some(p) = progress {
-                p.step();
-            }
-            !crate::progress::cancelled(progress)
-        })
+        .filter(|_| crate::progress::next(progress))
         .map(|(t, list)| {
             let (tx, ty) = (t as u32 % tiles_x, t as u32 / tiles_x);
             let pixels = (
