@@ -623,11 +623,13 @@ fn render_watched(
     plan.params.progress = Some(progress.clone());
     let finished = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|s| {
-        if !quiet {
-            s.spawn(|| show_progress(&progress, &finished));
-        }
+        let watcher = (!quiet).then(|| s.spawn(|| show_progress(&progress, &finished)));
         let r = renderer.render(scene, &plan);
         finished.store(true, std::sync::atomic::Ordering::Relaxed);
+        // Wake it now: the frame is not to wait for the bar's next tick.
+        if let Some(w) = &watcher {
+            w.thread().unpark();
+        }
         r
     })
 }
@@ -638,7 +640,10 @@ fn show_progress(progress: &fluidcast_backend::Progress, finished: &std::sync::a
     let start = std::time::Instant::now();
     let mut bar: Option<ProgressBar> = None;
     while !finished.load(Ordering::Relaxed) {
-        std::thread::sleep(std::time::Duration::from_millis(100));
+        std::thread::park_timeout(std::time::Duration::from_millis(100));
+        if finished.load(Ordering::Relaxed) {
+            break;
+        }
         if start.elapsed().as_secs_f64() < 1.0 {
             continue;
         }
