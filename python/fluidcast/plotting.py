@@ -1,9 +1,11 @@
-"""fluidcast in a pyvista ``Plotter``: ``add_particles`` puts the VTK mapper into a plotter
-with pyvista's ``add_volume`` conventions, ``read`` loads particle files into pyvista.
+"""fluidcast in a pyvista ``Plotter``: ``add_particles`` puts particles into a plotter with
+pyvista's ``add_volume`` conventions, ``read`` loads particle files into pyvista.
 
-The mapper renders with the plotter's camera and window into the same image as the other
-actors: opaque meshes in front of the particles hide them, and the particles cover what lies
-behind them.
+Two routes draw them, to the same image: the VTK mapper where it was built for this Python's
+VTK (ParaView's, conda-forge's), else the Python module ``fluidcast._core`` composited into
+the plotter (:mod:`fluidcast.overlay`; pip's VTK). Either renders with the plotter's camera
+and window into the same image as the other actors: opaque meshes in front of the particles
+hide them, and the particles cover what lies behind them.
 """
 from __future__ import annotations
 
@@ -17,14 +19,18 @@ from vtkmodules.vtkCommonCore import VTK_STRING, vtkCommand
 from vtkmodules.vtkCommonDataModel import vtkPiecewiseFunction, vtkPointSet
 from vtkmodules.vtkRenderingCore import vtkColorTransferFunction, vtkVolumeProperty
 
-from ._rendering import vtkFluidCastReader, vtkFluidCastVolumeMapper
+from . import _core, api
 
-#: Backend names → the mapper's constants (``Backend`` property; ParaView's FluidCastBackend).
-BACKENDS = {
-    "auto": vtkFluidCastVolumeMapper.AUTO,
-    "cpu": vtkFluidCastVolumeMapper.CPU,
-    "gpu": vtkFluidCastVolumeMapper.GPU,
-}
+try:
+    from ._rendering import vtkFluidCastReader, vtkFluidCastVolumeMapper
+    MAPPER_ERROR: str | None = None
+except ImportError as _e:  # pip's VTK: the module route (fluidcast.overlay)
+    vtkFluidCastReader = vtkFluidCastVolumeMapper = None
+    MAPPER_ERROR = str(_e)
+
+#: Backend names, in the order of the mapper's constants (``Backend`` property; ParaView's
+#: FluidCastBackend): auto, cpu, gpu.
+BACKENDS = {name: i for i, name in enumerate(_core.names()["backends"])}
 
 # vtkSmartVolumeMapper's vector modes, which the mapper follows.
 _MAGNITUDE_BY_DEFAULT = -1
@@ -32,11 +38,8 @@ _COMPONENT = 1
 
 
 def kernels() -> list[str]:
-    """The SPH kernels the mapper knows (its ``Kernel`` property), from the mapper itself."""
-    names = []
-    while name := vtkFluidCastVolumeMapper.GetKernelName(len(names)):
-        names.append(name)
-    return names
+    """The SPH kernels fluidcast knows (the mapper's ``Kernel`` property)."""
+    return list(_core.names()["kernels"])
 
 
 class _Errors:
@@ -74,6 +77,8 @@ def read(path: str | Path) -> pv.PolyData:
     if not path.is_file():
         raise ValueError(f"{path}: not a regular file (a FIFO, socket or device), which "
                          "fluidcast does not read")
+    if vtkFluidCastReader is None:
+        return _point_set(api.read(path))
     reader = vtkFluidCastReader()
     errors = _Errors(reader)
     reader.SetFileName(str(path))
@@ -93,7 +98,7 @@ def _checked(argument: str, prop: str, value) -> float:
     except (TypeError, ValueError):
         raise ValueError(f"fluidcast.add_particles: {argument} must be a number, "
                          f"not {value!r}") from None
-    why = vtkFluidCastVolumeMapper.CheckSetting(prop, v)
+    why = _core.check_setting(prop, v)
     if why:
         raise ValueError(f"fluidcast.add_particles: {argument}: {why}")
     return v
@@ -102,6 +107,13 @@ def _checked(argument: str, prop: str, value) -> float:
 def _point_set(particles) -> pv.DataSet:
     if isinstance(particles, (str, Path)):
         return read(particles)
+    if isinstance(particles, api.Particles):
+        mesh = pv.PolyData(np.asarray(particles.points, dtype=float))
+        for k, v in particles.point_data.items():
+            mesh.point_data[k] = v
+        for k, v in particles.field_data.items():
+            mesh.field_data[k] = v
+        particles = mesh
     if not isinstance(particles, vtkPointSet):
         raise TypeError(
             "fluidcast.add_particles: particles must be a file path or a point set "
@@ -213,7 +225,7 @@ def _lookup_table(plotter, cmap, n_colors, flip_scalars, opacity, clim) -> pv.Lo
     return lut
 
 
-def _configure(mapper, mesh, name, values, component, support_radius, radius_array,
+def _configure(mapper, mesh, name, values, *, component, support_radius, radius_array,
                radius_scale, kernel, error_tolerance, backend, adapter):
     mapper.SetInputData(mesh)
     mapper.SetScalarModeToUsePointFieldData()
@@ -276,7 +288,8 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
                   ambient: float = 0.1, diffuse: float = 0.7, specular: float = 0.2,
                   specular_power: float = 10.0, show_scalar_bar: bool | None = None,
                   scalar_bar_args: dict | None = None, name: str | None = None,
-                  reset_camera: bool | None = None, render: bool = True) -> pv.Volume:
+                  reset_camera: bool | None = None, render: bool = True,
+                  route: str = "auto"):
     """Adds SPH particles to ``plotter`` as a volume rendered by fluidcast, and returns the
     ``pyvista.Volume`` (its ``mapper`` is the ``vtkFluidCastVolumeMapper``: every property,
     e.g. ``SetKernel``, ``SetRadiusArray``, ``SetBackendToGPU``, stays reachable).
@@ -314,6 +327,10 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
       CPU (the mapper's iso-surface blend mode and the property's iso values, as VTK's GPU
       mapper takes them).
 
+    ``route``: "auto" (the VTK mapper where it is importable, else the module), "mapper" or
+    "module" (:mod:`fluidcast.overlay`: rendered by ``fluidcast._core`` and composited into
+    the plotter, depth-correctly; returns a :class:`fluidcast.overlay.ParticlesOverlay`).
+
     Bad input (no points, a missing array, NaN radii, ...) and bad arguments (NaN, inf, a
     negative radius, complex scalars, ...; the same table of settings as the CLI and ParaView
     decides) raise ``ValueError`` naming the argument, and add nothing; the mapper reports
@@ -333,40 +350,22 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
     clim = _clim(_rendered_values(values, component), clim)
     lut = _lookup_table(plotter, cmap, n_colors, flip_scalars, opacity, clim)
 
-    mapper = vtkFluidCastVolumeMapper()
-    _configure(mapper, mesh, name_, values, component, support_radius, radius_array,
-               radius_scale, kernel, error_tolerance, backend, adapter)
-    errors = _Errors(mapper)  # keeps the mapper's message off the console: it is raised
-    ok = mapper.UpdateParticles()
-    errors.close()
-    if not ok:
-        raise ValueError(f"fluidcast.add_particles: {mapper.GetLastError()}")
-
-    prop = vtkVolumeProperty()
-    ctf, otf = transfer_functions(lut, clim)
-    prop.SetColor(ctf)
-    prop.SetScalarOpacity(otf)
     if opacity_unit_distance is None:
         opacity_unit_distance = _default_unit_distance(mesh)
-    prop.SetScalarOpacityUnitDistance(opacity_unit_distance)
-    prop.SetInterpolationTypeToLinear()
-    prop.SetShade(bool(shade))
-    prop.SetAmbient(ambient)
-    prop.SetDiffuse(diffuse)
-    prop.SetSpecular(specular)
-    prop.SetSpecularPower(specular_power)
-    if iso:
-        for i, v in enumerate(iso):
-            prop.GetIsoSurfaceValues().SetValue(i, v)
-        mapper.SetBlendModeToIsoSurface()
-        mapper.SetIsoSurfaceField(isosurface_field)
-        mapper.SetIsoSurfaceOpacity(isosurface_opacity)
-        mapper.SetIsoSurfaceWithVolume(bool(isosurface_with_volume))
-
-    volume = pv.Volume()
-    volume.mapper = mapper
-    volume.prop = prop
-    plotter.add_actor(volume, reset_camera=reset_camera, name=name, render=False)
+    surfaces = dict(isosurfaces=iso or None, isosurface_field=isosurface_field,
+                    isosurface_opacity=isosurface_opacity,
+                    isosurface_with_volume=isosurface_with_volume, shade=shade,
+                    ambient=ambient, diffuse=diffuse, specular=specular,
+                    specular_power=specular_power)
+    data = dict(component=component, support_radius=support_radius, radius_array=radius_array,
+                radius_scale=radius_scale, kernel=kernel, error_tolerance=error_tolerance,
+                backend=backend, adapter=adapter)
+    if _route(route) == "module":
+        added = _add_through_module(plotter, mesh, name_, data, lut, clim,
+                                    opacity_unit_distance, surfaces, name, reset_camera)
+    else:
+        added = _add_mapper(plotter, mesh, name_, values, data, lut, clim,
+                            opacity_unit_distance, surfaces, name, reset_camera)
     if show_scalar_bar is None:
         show_scalar_bar = plotter.theme.show_scalar_bar
     if show_scalar_bar:
@@ -378,4 +377,76 @@ def add_particles(plotter: pv.Plotter, particles, scalars=None, *, component: in
         plotter.add_scalar_bar(mapper=bar, **args)
     if render:
         plotter.render()
+    return added
+
+
+def _route(route: str) -> str:
+    if route not in ("auto", "mapper", "module"):
+        raise ValueError(f"fluidcast.add_particles: route '{route}': auto, mapper or module")
+    if route == "mapper" and vtkFluidCastVolumeMapper is None:
+        raise ValueError(f"fluidcast.add_particles: route 'mapper': {MAPPER_ERROR}")
+    if route == "auto":
+        return "mapper" if vtkFluidCastVolumeMapper is not None else "module"
+    return route
+
+
+def _add_mapper(plotter, mesh, name_, values, data, lut, clim, unit_distance, surfaces, name,
+                reset_camera) -> pv.Volume:
+    """The VTK mapper in a ``pyvista.Volume``."""
+    mapper = vtkFluidCastVolumeMapper()
+    _configure(mapper, mesh, name_, values, **data)
+    errors = _Errors(mapper)  # keeps the mapper's message off the console: it is raised
+    ok = mapper.UpdateParticles()
+    errors.close()
+    if not ok:
+        raise ValueError(f"fluidcast.add_particles: {mapper.GetLastError()}")
+    prop = vtkVolumeProperty()
+    ctf, otf = transfer_functions(lut, clim)
+    prop.SetColor(ctf)
+    prop.SetScalarOpacity(otf)
+    prop.SetScalarOpacityUnitDistance(unit_distance)
+    prop.SetInterpolationTypeToLinear()
+    prop.SetShade(bool(surfaces["shade"]))
+    prop.SetAmbient(surfaces["ambient"])
+    prop.SetDiffuse(surfaces["diffuse"])
+    prop.SetSpecular(surfaces["specular"])
+    prop.SetSpecularPower(surfaces["specular_power"])
+    if surfaces["isosurfaces"]:
+        for i, v in enumerate(surfaces["isosurfaces"]):
+            prop.GetIsoSurfaceValues().SetValue(i, v)
+        mapper.SetBlendModeToIsoSurface()
+        mapper.SetIsoSurfaceField(surfaces["isosurface_field"])
+        mapper.SetIsoSurfaceOpacity(surfaces["isosurface_opacity"])
+        mapper.SetIsoSurfaceWithVolume(bool(surfaces["isosurface_with_volume"]))
+    volume = pv.Volume()
+    volume.mapper = mapper
+    volume.prop = prop
+    plotter.add_actor(volume, reset_camera=reset_camera, name=name, render=False)
     return volume
+
+
+def _add_through_module(plotter, mesh, name_, data, lut, clim, unit_distance, surfaces, name,
+                        reset_camera):
+    """The particles rendered by the Python module and composited into the plotter."""
+    from .overlay import ParticlesOverlay
+
+    try:
+        scene = api.Scene(mesh, name_, **data)
+    except ValueError as e:
+        raise ValueError(f"fluidcast.add_particles: {e}") from None
+    table = np.asarray(lut.values, dtype=np.float64) / 255.0
+    options = dict(cmap=None, tf=None, clim=clim, opacity_unit_distance=unit_distance,
+                   isosurfaces=surfaces["isosurfaces"],
+                   isosurface_field=surfaces["isosurface_field"],
+                   isosurface_opacity=surfaces["isosurface_opacity"],
+                   isosurface_with_volume=surfaces["isosurface_with_volume"],
+                   shade=surfaces["shade"], ambient=surfaces["ambient"],
+                   diffuse=surfaces["diffuse"], specular=surfaces["specular"],
+                   specular_power=surfaces["specular_power"], table=table)
+    # The particles' bounds as an invisible actor, so that the plotter's camera frames them.
+    lo, hi = np.nanmin(scene.particles.points, 0), np.nanmax(scene.particles.points, 0)
+    corners = pv.PolyData(np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                                    for z in (lo[2], hi[2])], dtype=float))
+    bounds = plotter.add_mesh(corners, opacity=0.0, reset_camera=reset_camera, name=name,
+                              render=False, pickable=False)
+    return ParticlesOverlay(plotter, scene, options, bounds)

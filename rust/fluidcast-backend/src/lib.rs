@@ -18,6 +18,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+pub mod defaults;
 mod frame;
 mod march;
 mod plan;

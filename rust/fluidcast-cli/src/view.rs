@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use fluidcast_backend::{GridParams, PlanParams, RenderParams};
+use fluidcast_backend::{defaults, GridParams, PlanParams, RenderParams};
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction};
 
@@ -216,13 +216,7 @@ impl ViewArgs {
     fn camera(&self, particles: &Particles) -> Result<Camera> {
         let a = self;
         let mut cam = if a.camera == "auto" {
-            let (lo, hi) = particles.support_bounds();
-            let mut c = Camera {
-                parallel_projection: a.parallel,
-                ..Default::default()
-            };
-            c.reset(lo.map(f64::from), hi.map(f64::from));
-            c
+            defaults::auto_camera(particles, a.parallel)
         } else {
             let text = fluidcast_mem::read_text(Path::new(&a.camera))
                 .with_context(|| format!("reading camera file {}", a.camera))?;
@@ -270,20 +264,13 @@ impl ViewArgs {
         let cam = a.camera(particles)?;
         let (lo, hi) = match &a.range {
             Some(r) => parse_pair(r, "--range")?,
-            None => auto_range(particles, params),
+            None => defaults::auto_range(particles, params.kernel, params.field),
         };
         tf = tf.with_range(lo, hi)?;
         tf.unit_distance = match a.opacity_unit_distance {
             // Checked while parsing (crate::checked).
             Some(u) => u,
-            None => {
-                let (lo, hi) = particles.support_bounds();
-                let diag = (0..3)
-                    .map(|k| ((hi[k] - lo[k]) as f64).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-                diag / (particles.len() as f64).cbrt()
-            }
+            None => defaults::auto_unit_distance(particles),
         };
         if verbose {
             eprintln!(
@@ -297,35 +284,6 @@ impl ViewArgs {
             );
         }
         Ok((cam, tf))
-    }
-}
-
-/// The colour map's range without `--range`: the attribute's range for CSPH; for sums, 0 up
-/// to the typical field magnitude at a particle (a sample of 2000); a point widened to 1.
-fn auto_range(particles: &Particles, params: &RenderParams) -> (f64, f64) {
-    let (lo, hi) = match params.field {
-        fluidcast_sph::FieldKind::Csph => {
-            let r = particles.value_range();
-            (r.0 as f64, r.1 as f64)
-        }
-        _ => {
-            let s = particles.sample_many(
-                params.kernel,
-                &particles
-                    .positions
-                    .iter()
-                    .step_by((particles.len() / 2000).max(1))
-                    .map(|p| p.map(f64::from))
-                    .collect::<Vec<_>>(),
-            );
-            let v: Vec<f64> = s.iter().filter_map(|s| s.value(params.field)).collect();
-            (0.0, v.iter().copied().fold(0.0, f64::max))
-        }
-    };
-    if lo < hi {
-        (lo, hi)
-    } else {
-        (lo - 0.5, lo + 0.5)
     }
 }
 

@@ -28,10 +28,11 @@ use std::time::Instant;
 use fluidcast_backend::{Backend, IsoField, Rendered, Scene, Surfaces};
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
 use fluidcast_sph::{
-    Component, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
+    Component, FieldSample, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
 use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
 use plan::{field_names, plan_of};
+pub use reader::refusal as mesh_refusal;
 use reader::{particle_reader_claims, read_particle_file, read_series, ParticleFile};
 
 #[allow(
@@ -362,7 +363,8 @@ fn new_render_control() -> Box<RenderControl> {
 }
 
 impl RenderControl {
-    fn cancel(&self) {
+    /// Asks the render to stop.
+    pub fn cancel(&self) {
         self.0.cancel();
     }
 
@@ -451,7 +453,8 @@ struct Prepared {
     info: ffi::RenderInfo,
 }
 
-fn new_renderer() -> Box<Renderer> {
+/// A renderer with no data, settings, camera or transfer function yet.
+pub fn new_renderer() -> Box<Renderer> {
     Box::new(Renderer {
         data: empty_dataset(""),
         settings: None,
@@ -497,7 +500,8 @@ impl Renderer {
         self.data.path.display().to_string()
     }
 
-    fn begin_data(&mut self, name: &str) {
+    /// Starts a new particle set; `name` appears in error messages (the bridge's `begin_data`).
+    pub fn begin_data(&mut self, name: &str) {
         self.data = empty_dataset(name);
         self.prepared = None;
     }
@@ -518,11 +522,13 @@ impl Renderer {
         Ok(())
     }
 
-    fn set_points_f32(&mut self, xyz: &[f32]) -> Result<(), String> {
+    /// The particles' points, x y z per point (world space).
+    pub fn set_points_f32(&mut self, xyz: &[f32]) -> Result<(), String> {
         guarded("set_points", || self.set_points(xyz))
     }
 
-    fn set_points_f64(&mut self, xyz: &[f64]) -> Result<(), String> {
+    /// The particles' points, x y z per point (world space).
+    pub fn set_points_f64(&mut self, xyz: &[f64]) -> Result<(), String> {
         guarded("set_points", || self.set_points(xyz))
     }
 
@@ -552,7 +558,8 @@ impl Renderer {
         Ok(())
     }
 
-    fn add_point_array_f32(
+    /// A point array of `components` values per point, tuple after tuple.
+    pub fn add_point_array_f32(
         &mut self,
         name: &str,
         components: usize,
@@ -563,7 +570,8 @@ impl Renderer {
         })
     }
 
-    fn add_point_array_f64(
+    /// A point array of `components` values per point, tuple after tuple.
+    pub fn add_point_array_f64(
         &mut self,
         name: &str,
         components: usize,
@@ -574,7 +582,8 @@ impl Renderer {
         })
     }
 
-    fn add_field_scalar(&mut self, name: &str, value: f64) {
+    /// A field-data value such as `support_radius`.
+    pub fn add_field_scalar(&mut self, name: &str, value: f64) {
         self.data.field_data.retain(|a| a.name != name);
         self.data.field_data.push(DataArray {
             name: name.into(),
@@ -585,7 +594,8 @@ impl Renderer {
         self.prepared = None;
     }
 
-    fn configure(&mut self, s: &ffi::Settings) -> Result<(), String> {
+    /// The settings of the renders that follow, checked as the mapper's setters check them.
+    pub fn configure(&mut self, s: &ffi::Settings) -> Result<(), String> {
         guarded("configure", || {
             s.kernel
                 .parse::<Kernel>()
@@ -608,7 +618,8 @@ impl Renderer {
         })
     }
 
-    fn set_camera(&mut self, c: &ffi::CameraDesc) -> Result<(), String> {
+    /// The view of the renders that follow (refused when it cannot see).
+    pub fn set_camera(&mut self, c: &ffi::CameraDesc) -> Result<(), String> {
         guarded("set_camera", || {
             let cam = Camera {
                 position: c.position,
@@ -624,7 +635,8 @@ impl Renderer {
         })
     }
 
-    fn set_transfer_function(
+    /// The transfer function from tables sampled evenly over `lo..hi` ([`transfer_function`]).
+    pub fn set_transfer_function(
         &mut self,
         lo: f64,
         hi: f64,
@@ -638,7 +650,8 @@ impl Renderer {
         })
     }
 
-    fn set_surfaces(&mut self, s: &ffi::SurfaceSettings) -> Result<(), String> {
+    /// The iso-surfaces of the renders that follow.
+    pub fn set_surfaces(&mut self, s: &ffi::SurfaceSettings) -> Result<(), String> {
         guarded("set_surfaces", || {
             let keep = self.surfaces.take();
             self.surfaces = Some(s.clone());
@@ -689,7 +702,8 @@ impl Renderer {
         Ok(Some(Arc::new(surfaces)))
     }
 
-    fn prepare(&mut self) -> Result<ffi::RenderInfo, String> {
+    /// Builds the particles now (normally done by `render`) and reports them.
+    pub fn prepare(&mut self) -> Result<ffi::RenderInfo, String> {
         guarded("prepare", || self.prepared().map(|p| p.info.clone()))
     }
 
@@ -807,11 +821,13 @@ impl Renderer {
         Ok(())
     }
 
-    fn set_render_control(&mut self, control: &RenderControl) {
+    /// The renders that follow report to `control` and stop when it is cancelled.
+    pub fn set_render_control(&mut self, control: &RenderControl) {
         self.control = Some(control.0.clone());
     }
 
-    fn render(
+    /// Renders `width x height`, rows top first, into premultiplied RGBA and view depth (see the bridge's `render`).
+    pub fn render(
         &mut self,
         width: u32,
         height: u32,
@@ -864,6 +880,81 @@ impl Renderer {
             })?;
             Ok(finish(&r, (rgba, depth), t, &p.info))
         })
+    }
+}
+
+impl Renderer {
+    /// The transfer function of the renders that follow, as given (a CLI preset or a
+    /// ParaView preset file read by [`TransferFunction`]).
+    pub fn set_transfer(&mut self, tf: TransferFunction) {
+        self.tf = Some(tf);
+    }
+
+    /// The particles the data and settings make (built now if they were not).
+    pub fn particles(&mut self) -> Result<&Particles, String> {
+        Ok(self.prepared()?.scene.particles())
+    }
+
+    /// The field sums of the particles (as the settings build them) at `points` (world
+    /// space), with the settings' kernel: what `fluidcast probe` writes.
+    pub fn interpolate(&mut self, points: &[[f64; 3]]) -> Result<Vec<FieldSample>, String> {
+        guarded("interpolate", || {
+            let s = self
+                .settings
+                .as_ref()
+                .ok_or("fluidcast: configure() was not called")?;
+            let kernel: Kernel = s.kernel.parse()?;
+            let p = self.prepared()?;
+            Ok(p.scene.particles().sample_many(kernel, points))
+        })
+    }
+}
+
+/// The settings a new mapper has (vtkFluidCastVolumeMapper's defaults, the CLI's): the
+/// particle density (no array) with the data's radius, cubic kernel, CSPH, error tolerance
+/// 0.004, backend auto, the plan's defaults.
+pub fn default_settings() -> Settings {
+    Settings {
+        scalars: String::new(),
+        component: -2,
+        support_radius: 0.0,
+        radius_array: String::new(),
+        radius_scale: 1.0,
+        kernel: "cubic".into(),
+        field: "csph".into(),
+        error_tolerance: 0.004,
+        backend: 0,
+        adapter: String::new(),
+        memory_limit_mib: 0.0,
+        work_limit: 0.0,
+        lod_tolerance: 0.0,
+        rbf_classification: "post".into(),
+        rbf_radius: 0.0,
+        samples_per_pixel: 1,
+        progressive_passes: 1,
+        shadows: false,
+        light: [0.0; 3],
+        shadow_ambient: 0.25,
+        radius_map: Vec::new(),
+        mode: String::new(),
+        grid_cell: 1,
+        probe: true,
+        superpixels: true,
+        surface_cells: true,
+        interpolate: true,
+        tiles: 0,
+        relax: 1.0,
+        strict: false,
+        bundle: 8,
+        depth_samples: 16,
+        sampling_scale: 1.0,
+        occlusion_culling: true,
+        rbf_noise: "blue".into(),
+        rbf_seed: 0,
+        rbf_leaf_size: fluidcast_backend::DEFAULT_LEAF_SIZE as u32,
+        rbf_step: 0.0,
+        shadow_samples: 1,
+        shade_volume: false,
     }
 }
 
@@ -972,45 +1063,9 @@ mod tests {
     fn settings() -> ffi::Settings {
         ffi::Settings {
             scalars: "value".into(),
-            component: -2,
             support_radius: 0.2,
-            radius_array: String::new(),
-            radius_scale: 1.0,
-            kernel: "cubic".into(),
-            field: "csph".into(),
-            error_tolerance: 0.004,
             backend: 1,
-            adapter: String::new(),
-            memory_limit_mib: 0.0,
-            work_limit: 0.0,
-            lod_tolerance: 0.0,
-            rbf_classification: "post".into(),
-            rbf_radius: 0.0,
-            samples_per_pixel: 1,
-            progressive_passes: 1,
-            shadows: false,
-            light: [0.0; 3],
-            shadow_ambient: 0.25,
-            radius_map: Vec::new(),
-            mode: String::new(),
-            grid_cell: 1,
-            probe: true,
-            superpixels: true,
-            surface_cells: true,
-            interpolate: true,
-            tiles: 0,
-            relax: 1.0,
-            strict: false,
-            bundle: 8,
-            depth_samples: 16,
-            sampling_scale: 1.0,
-            occlusion_culling: true,
-            rbf_noise: "blue".into(),
-            rbf_seed: 0,
-            rbf_leaf_size: fluidcast_backend::DEFAULT_LEAF_SIZE as u32,
-            rbf_step: 0.0,
-            shadow_samples: 1,
-            shade_volume: false,
+            ..default_settings()
         }
     }
 

@@ -37,7 +37,7 @@ const OTHER_READER: &str =
     "open it with ParaView's or VTK's own reader (ParaView: OpenDataFile or File > Open)";
 
 /// Why the particle reader does not read a mesh: what it would drop, and which reader keeps it.
-fn refusal(path: &str, dropped: &str) -> String {
+pub fn refusal(path: &str, dropped: &str) -> String {
     format!(
         "{path}: holds {dropped}, which fluidcast's particle reader would drop (it keeps \
          points, vertex cells, point data and field data only), so it does not read the file; \

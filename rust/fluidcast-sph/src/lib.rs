@@ -15,5 +15,5 @@ pub use grid::{Distinct, NeighbourGrid};
 pub use kernel::Kernel;
 pub use particles::{
     suggest_support_radius, Component, ParticleError, ParticleSource, ParticleSpec, Particles,
-    Quantity, RadiusSource, VolumeSource,
+    Quantity, RadiusSource, VolumeSource, DENSITY_NAMES, MASS_NAMES, VOLUME_NAMES,
 };

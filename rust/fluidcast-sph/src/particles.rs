@@ -118,10 +118,12 @@ pub struct ParticleSpec {
     pub mass: Option<String>,
 }
 
-/// The arrays [`VolumeSource::Auto`] and an automatic mass look for, in order.
-const MASS_NAMES: [&str; 2] = ["mass", "m"];
-const DENSITY_NAMES: [&str; 2] = ["density", "rho"];
-const VOLUME_NAMES: [&str; 2] = ["volume", "V"];
+/// The mass arrays [`VolumeSource::Auto`] and an automatic mass look for, in order.
+pub const MASS_NAMES: [&str; 2] = ["mass", "m"];
+/// The density arrays [`VolumeSource::Auto`] looks for, in order.
+pub const DENSITY_NAMES: [&str; 2] = ["density", "rho"];
+/// The volume arrays [`VolumeSource::Auto`] looks for, in order.
+pub const VOLUME_NAMES: [&str; 2] = ["volume", "V"];
 
 impl ParticleSpec {
     /// The point arrays [`Particles::from_dataset`] may read under this spec: a read that
