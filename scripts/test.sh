@@ -3,7 +3,8 @@
 # VTK itself (reader, vtkSPHInterpolator, camera, transfer function, VTK's volume rendering
 # of the resampled field), then builds the VTK mapper and ParaView plugin and runs their
 # ctest tests, then installs the Python package with the mapper into .venv-paraview and runs
-# its pyvista tests. Installs missing system packages and sets up .venv/ first (idempotent).
+# its pyvista tests, then the Python module in a plain venv with PyPI's VTK (tests/module).
+# Installs missing system packages and sets up .venv/ first (idempotent).
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 cd "$root"
@@ -41,9 +42,18 @@ ctest --test-dir build --output-on-failure --output-junit reports/ctest.xml
 bash scripts/setup_pyvista.sh
 tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista \
   --junitxml=build/reports/pytest-pyvista.xml
+# The Python module fluidcast._core, and add_particles without the mapper: `pip install .` into a
+# plain venv with PyPI's VTK and pyvista; then the same tests on ParaView's VTK, where both
+# routes (mapper and module) run and are compared.
+bash scripts/setup_pip_venv.sh
+tests/vtk/with_xvfb.sh .venv-pip/bin/python -m pytest -q tests/module \
+  --junitxml=build/reports/pytest-module-pip.xml
+tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/module \
+  --junitxml=build/reports/pytest-module-paraview.xml
 # A skipped test, or a ctest test that CMake did not register (a program not found), fails the
 # test command instead of passing quietly (skips are only listed with FLUIDCAST_REQUIRE_DATA=0).
 skips=()
 [ "$FLUIDCAST_REQUIRE_DATA" = 1 ] || skips=(--allow-skips)
 .venv/bin/python scripts/check_test_reports.py --expect tests/vtk/expected_ctest.txt "${skips[@]}" \
-  build/reports/pytest-python.xml build/reports/ctest.xml build/reports/pytest-pyvista.xml
+  build/reports/pytest-python.xml build/reports/ctest.xml build/reports/pytest-pyvista.xml \
+  build/reports/pytest-module-pip.xml build/reports/pytest-module-paraview.xml

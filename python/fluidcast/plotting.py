@@ -443,8 +443,12 @@ def _add_through_module(plotter, mesh, name_, data, lut, clim, unit_distance, su
                    shade=surfaces["shade"], ambient=surfaces["ambient"],
                    diffuse=surfaces["diffuse"], specular=surfaces["specular"],
                    specular_power=surfaces["specular_power"], table=table)
-    # The particles' bounds as an invisible actor, so that the plotter's camera frames them.
-    lo, hi = np.nanmin(scene.particles.points, 0), np.nanmax(scene.particles.points, 0)
+    # The field's bounds (the finite points grown by the largest support radius, as the
+    # mapper reports them) as an invisible actor, so that the plotter's camera frames them.
+    pts = np.asarray(scene.particles.points, dtype=float)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    h = scene.info["radius_max"]
+    lo, hi = pts.min(0) - h, pts.max(0) + h
     corners = pv.PolyData(np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                                     for z in (lo[2], hi[2])], dtype=float))
     bounds = plotter.add_mesh(corners, opacity=0.0, reset_camera=reset_camera, name=name,

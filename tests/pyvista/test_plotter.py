@@ -9,6 +9,7 @@ the meshes for the composition (depth buffer of the outline and of the particles
 import json
 
 import fluidcast
+import fluidcast.plotting
 import numpy as np
 import pytest
 import pyvista as pv
@@ -76,7 +77,7 @@ def max_diff(a, b, where=None):
 @pytest.fixture(scope="module")
 def ddb():
     path = shared(DDB)
-    return path, fluidcast.read(path)
+    return path, fluidcast.plotting.read(path)  # pyvista.PolyData
 
 
 def test_plotter_with_outline_matches_cli(ddb, tmp_path):

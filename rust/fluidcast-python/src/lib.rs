@@ -134,7 +134,10 @@ fn settings_table() -> Vec<(&'static str, &'static str, &'static str, &'static s
 #[pyfunction]
 fn names(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
-    let kernels: Vec<&str> = fluidcast_sph::Kernel::ALL.iter().map(|k| k.name()).collect();
+    let kernels: Vec<&str> = fluidcast_sph::Kernel::ALL
+        .iter()
+        .map(|k| k.name())
+        .collect();
     d.set_item("kernels", PyList::new(py, kernels)?)?;
     let fields: Vec<&str> = fluidcast_sph::FieldKind::ALL
         .iter()
@@ -142,7 +145,10 @@ fn names(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         .collect();
     d.set_item("fields", PyList::new(py, fields)?)?;
     d.set_item("modes", PyList::new(py, fluidcast_backend::Mode::NAMES)?)?;
-    d.set_item("backends", PyList::new(py, fluidcast_backend::Backend::NAMES)?)?;
+    d.set_item(
+        "backends",
+        PyList::new(py, fluidcast_backend::Backend::NAMES)?,
+    )?;
     let volume_arrays: Vec<&str> = [
         fluidcast_sph::MASS_NAMES,
         fluidcast_sph::DENSITY_NAMES,

@@ -1,8 +1,8 @@
 //! `fluidcast._core.Renderer`: particles, settings, camera and transfer function, rendered
 //! by the VTK mapper's engine ([`fluidcast_cxx::Renderer`]) with the GIL released.
 
-use fluidcast_cxx::{default_settings, CameraDesc, RenderInfo, Settings, SurfaceSettings};
 use fluidcast_backend::defaults;
+use fluidcast_cxx::{default_settings, CameraDesc, RenderInfo, Settings, SurfaceSettings};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::TransferFunction;
 use numpy::{
@@ -46,15 +46,53 @@ fn settings_of(d: &Bound<'_, PyDict>) -> PyResult<Settings> {
     let mut s = default_settings();
     for (k, value) in d.iter() {
         let key: String = k.extract()?;
-        settings_from!(s, key, value, [
-            scalars, component, support_radius, radius_array, radius_scale, kernel, field,
-            error_tolerance, backend, adapter, memory_limit_mib, work_limit, lod_tolerance,
-            rbf_classification, rbf_radius, samples_per_pixel, progressive_passes, shadows,
-            light, shadow_ambient, radius_map, mode, grid_cell, probe, superpixels,
-            surface_cells, interpolate, tiles, relax, strict, bundle, depth_samples,
-            sampling_scale, occlusion_culling, rbf_noise, rbf_seed, rbf_leaf_size, rbf_step,
-            shadow_samples, shade_volume,
-        ]);
+        settings_from!(
+            s,
+            key,
+            value,
+            [
+                scalars,
+                component,
+                support_radius,
+                radius_array,
+                radius_scale,
+                kernel,
+                field,
+                error_tolerance,
+                backend,
+                adapter,
+                memory_limit_mib,
+                work_limit,
+                lod_tolerance,
+                rbf_classification,
+                rbf_radius,
+                samples_per_pixel,
+                progressive_passes,
+                shadows,
+                light,
+                shadow_ambient,
+                radius_map,
+                mode,
+                grid_cell,
+                probe,
+                superpixels,
+                surface_cells,
+                interpolate,
+                tiles,
+                relax,
+                strict,
+                bundle,
+                depth_samples,
+                sampling_scale,
+                occlusion_culling,
+                rbf_noise,
+                rbf_seed,
+                rbf_leaf_size,
+                rbf_step,
+                shadow_samples,
+                shade_volume,
+            ]
+        );
     }
     Ok(s)
 }
@@ -74,10 +112,22 @@ fn surfaces_of(d: &Bound<'_, PyDict>) -> PyResult<SurfaceSettings> {
     };
     for (k, value) in d.iter() {
         let key: String = k.extract()?;
-        settings_from!(s, key, value, [
-            iso_values, iso_field, opacity, with_volume, shade, ambient, diffuse, specular,
-            specular_power,
-        ]);
+        settings_from!(
+            s,
+            key,
+            value,
+            [
+                iso_values,
+                iso_field,
+                opacity,
+                with_volume,
+                shade,
+                ambient,
+                diffuse,
+                specular,
+                specular_power,
+            ]
+        );
     }
     Ok(s)
 }
@@ -273,9 +323,14 @@ impl PyRenderer {
                 )))
             }
         };
-        let n = w.checked_mul(h).filter(|&n| n > 0 && n <= 1 << 28).ok_or_else(|| {
-            value_error(format!("image size {width}x{height}: each side 1 or more, at most 2^28 pixels"))
-        })?;
+        let n = w
+            .checked_mul(h)
+            .filter(|&n| n > 0 && n <= 1 << 28)
+            .ok_or_else(|| {
+                value_error(format!(
+                    "image size {width}x{height}: each side 1 or more, at most 2^28 pixels"
+                ))
+            })?;
         let (mut rgba, mut depth) = (vec![0f32; 4 * n], vec![0f32; n]);
         let r = &mut self.inner;
         let info = py
