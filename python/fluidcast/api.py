@@ -240,14 +240,25 @@ def _opacity(opacity, n: int) -> np.ndarray:
     return np.clip(np.interp(x, np.linspace(0.0, 1.0, a.size), a), 0.0, 1.0)
 
 
+def _preset(cmap) -> str | None:
+    """The fluidcast preset (any case; None: Viridis, the CLI's default) or ParaView preset
+    file ``cmap`` names, or None for a matplotlib colour map."""
+    if cmap is None:
+        return "Viridis"
+    presets = {name.lower(): name for name in _core.names()["presets"]}
+    if str(cmap).lower() in presets:
+        return presets[str(cmap).lower()]
+    return str(cmap) if str(cmap).lower().endswith(".json") else None
+
+
 def _colours(cmap, n: int) -> tuple[np.ndarray, np.ndarray | None]:
     """(n×3 colours, the preset's own opacities or None) of a fluidcast preset (any case), a
     ParaView preset file or a matplotlib colour map."""
-    presets = {name.lower(): name for name in _core.names()["presets"]}
-    name = presets.get(str(cmap).lower())
-    if name is not None or str(cmap).lower().endswith(".json"):
-        rgb, alpha = _core.preset_table(name or str(cmap), n)
+    preset = _preset(cmap)
+    if preset is not None:
+        rgb, alpha = _core.preset_table(preset, n)
         return rgb, alpha
+    presets = {name.lower(): name for name in _core.names()["presets"]}
     try:
         import matplotlib
     except ImportError:
@@ -354,8 +365,9 @@ class Scene:
         return Image(rgba, depth, stats, cam, (lo, hi))
 
     def _transfer(self, cmap, opacity, n_colors, flip, clim, unit):
-        if cmap is None and opacity is None and not flip:
-            self._core.set_preset("Viridis", clim[0], clim[1], unit)  # the CLI's default
+        preset = _preset(cmap)
+        if preset is not None and opacity is None and not flip:
+            self._core.set_preset(preset, clim[0], clim[1], unit)  # exactly as the CLI's --tf
             return
         n = int(n_colors)
         rgb, own = _colours("Viridis" if cmap is None else cmap, n)

@@ -22,5 +22,17 @@ def fluidcast(*args, check=True):
     return r
 
 
+def render_png(path, array=None, **options):
+    """The Python module's render (``fluidcast.render``) of ``path`` as 8-bit RGB over white,
+    as the CLI writes PNGs; ``array`` as the CLI's --array: NAME, NAME:mag or NAME:K."""
+    from fluidcast import api
+
+    scalars, component = None, None
+    if array:
+        scalars, _, comp = array.partition(":")
+        component = None if comp in ("", "mag") else int(comp)
+    return api.render(path, scalars, component=component, **options).to_uint8()
+
+
 def info_json(path):
     return json.loads(fluidcast("info", path, "--json").stdout)

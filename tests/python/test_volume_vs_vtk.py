@@ -34,10 +34,10 @@ import json
 
 import numpy as np
 import pytest
-from conftest import fluidcast, shared
-from fluidcast.camera import reset_camera, save_camera
+from conftest import render_png, shared
+from fluidcast.camera import reset_camera
 from fluidcast.data import point_array, read_points, support_radius, volume_arrays
-from fluidcast.images import difference, read_png
+from fluidcast.images import difference
 from fluidcast.transfer import matplotlib_tf, tf_to_preset
 from fluidcast.vtk_sph import render_volume, sph_volume
 
@@ -67,13 +67,11 @@ def test_reference_image_converges_to_vtk_volume_rendering(case, tmp_path):
     tf.write_text(json.dumps([tf_to_preset(ctf, otf)]))
     ours = {}
     for mode in ("reference", "default"):
-        out = tmp_path / f"fluidcast_{mode}.png"
-        fluidcast("render", path, "--array", c["array"], "--tf", tf, "--range", f"{lo},{hi}",
-                  "--camera", save_camera(cam, tmp_path / "cam.json"),
-                  "--size", f"{SIZE[0]}x{SIZE[1]}", "--opacity-unit-distance", c["unit"],
-                  "--support-radius", support, "--mass-array", mass, "--density-array",
-                  density, *(["--mode", "reference"] if mode == "reference" else []), "-o", out)
-        ours[mode] = read_png(out)
+        # The Python module (the volumes from the mass and density arrays, as found).
+        ours[mode] = render_png(path, c["array"], tf=str(tf), clim=(lo, hi), camera=cam,
+                                size=SIZE, opacity_unit_distance=c["unit"],
+                                support_radius=support,
+                                mode="reference" if mode == "reference" else "auto")
         assert (ours[mode] != 255).any(axis=2).mean() > 0.05, f"{mode}: drew almost nothing"
 
     rmse = {mode: {} for mode in ours}
