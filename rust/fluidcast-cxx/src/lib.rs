@@ -28,7 +28,8 @@ use std::time::Instant;
 use fluidcast_backend::{Backend, IsoField, Rendered, Scene, Surfaces};
 use fluidcast_io::{DataArray, Dataset, DatasetKind, ScalarType};
 use fluidcast_sph::{
-    Component, FieldSample, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
+    Component, FieldSample, Kernel, ParticleSource, ParticleSpec, Particles, Quantity,
+    RadiusSource, VolumeSource,
 };
 use fluidcast_view::{Camera, Light, Lighting, TransferFunction};
 use plan::{field_names, plan_of};
@@ -391,6 +392,10 @@ pub struct Renderer {
     surfaces: Option<ffi::SurfaceSettings>,
     /// Where renders report progress and look for a cancel (`set_render_control`).
     control: Option<Arc<fluidcast_backend::Progress>>,
+    /// Whether the particles came from `prepare_source` rather than from `data`.
+    external: bool,
+    /// With `external`: the iso-surfaces' point array (name, values at the particles).
+    iso_attribute: Option<(String, Arc<[f32]>)>,
 }
 
 /// What `set_part` said: the crop box (min and max corners) and the whole's support depths.
@@ -454,6 +459,61 @@ struct Prepared {
 }
 
 /// A renderer with no data, settings, camera or transfer function yet.
+impl Prepared {
+    /// A scene of `particles` and what they are, for the render line.
+    fn of(particles: Particles) -> Result<Prepared, String> {
+        let (vlo, vhi) = particles.value_range();
+        let (rlo, rhi) = particles
+            .radii
+            .iter()
+            .fold((f32::INFINITY, 0f32), |(a, b), &r| (a.min(r), b.max(r)));
+        let info = ffi::RenderInfo {
+            particles: particles.len() as u64,
+            skipped_nonfinite: particles.skipped_nonfinite as u64,
+            radius_min: rlo as f64,
+            radius_max: rhi as f64,
+            value_min: vlo as f64,
+            value_max: vhi as f64,
+            notes: particles.notes.join("\n"),
+            ..Default::default()
+        };
+        // The camera and transfer function are set before each render.
+        let tf = TransferFunction::preset("viridis").map_err(|e| e.to_string())?;
+        let scene = Scene::new(particles, Camera::default(), tf);
+        Ok(Prepared { scene, info })
+    }
+}
+
+/// How settings `s` build particles: the rendered array and component, the radius (constant,
+/// an array, or the data's), the volumes from the data's arrays.
+pub fn particle_spec(s: &Settings) -> ParticleSpec {
+    let quantity = (!s.scalars.is_empty()).then(|| Quantity {
+        array: s.scalars.clone(),
+        component: match s.component {
+            k if k >= 0 => Component::Index(k as usize),
+            -1 => Component::Magnitude,
+            _ => Component::Auto,
+        },
+    });
+    let radius = if s.support_radius > 0.0 {
+        RadiusSource::Constant(s.support_radius)
+    } else if !s.radius_array.is_empty() {
+        RadiusSource::Array {
+            name: s.radius_array.clone(),
+            scale: s.radius_scale,
+        }
+    } else {
+        RadiusSource::Auto
+    };
+    ParticleSpec {
+        quantity,
+        radius,
+        volume: VolumeSource::Auto,
+        mass: None,
+    }
+}
+
+/// A renderer with no data, settings, camera or transfer function yet.
 pub fn new_renderer() -> Box<Renderer> {
     Box::new(Renderer {
         data: empty_dataset(""),
@@ -465,6 +525,8 @@ pub fn new_renderer() -> Box<Renderer> {
         part: Part::default(),
         surfaces: None,
         control: None,
+        external: false,
+        iso_attribute: None,
     })
 }
 
@@ -504,6 +566,8 @@ impl Renderer {
     pub fn begin_data(&mut self, name: &str) {
         self.data = empty_dataset(name);
         self.prepared = None;
+        self.external = false;
+        self.iso_attribute = None;
     }
 
     fn set_points<T: Copy + Into<f64>>(&mut self, xyz: &[T]) -> Result<(), String> {
@@ -673,6 +737,15 @@ impl Renderer {
             "" | "colour" | "color" => IsoField::Colour,
             "density" => IsoField::Density,
             _ if s.iso_field == scalars => IsoField::Attribute(None),
+            _ if self.external => match &self.iso_attribute {
+                Some((name, v)) if *name == s.iso_field => IsoField::Attribute(Some(v.clone())),
+                _ => {
+                    return Err(format!(
+                        "iso-surfaces of point array '{}': not given with the particles",
+                        s.iso_field
+                    ))
+                }
+            },
             _ if self.data.points.is_empty() => IsoField::Attribute(None), // no data yet
             _ => {
                 let q = Quantity {
@@ -745,60 +818,45 @@ impl Renderer {
 
     fn prepared(&mut self) -> Result<&Prepared, String> {
         if self.prepared.is_none() {
+            if self.external {
+                return Err(format!(
+                    "{}: the particles given with prepare_source were dropped by a change of \
+                     the settings they depend on; give them again",
+                    self.name()
+                ));
+            }
             let s = self
                 .settings
                 .as_ref()
                 .ok_or("fluidcast: configure() was not called")?;
-            let quantity = (!s.scalars.is_empty()).then(|| Quantity {
-                array: s.scalars.clone(),
-                component: match s.component {
-                    k if k >= 0 => Component::Index(k as usize),
-                    -1 => Component::Magnitude,
-                    _ => Component::Auto,
-                },
-            });
-            let radius = if s.support_radius > 0.0 {
-                RadiusSource::Constant(s.support_radius)
-            } else if !s.radius_array.is_empty() {
-                RadiusSource::Array {
-                    name: s.radius_array.clone(),
-                    scale: s.radius_scale,
-                }
-            } else {
-                RadiusSource::Auto
-            };
-            let spec = ParticleSpec {
-                quantity,
-                radius,
-                volume: VolumeSource::Auto,
-                mass: None,
-            };
-            let particles =
-                Particles::from_dataset(&self.data, &spec).map_err(|e| e.to_string())?;
-            let (vlo, vhi) = particles.value_range();
-            let (rlo, rhi) = particles
-                .radii
-                .iter()
-                .fold((f32::INFINITY, 0f32), |(a, b), &r| (a.min(r), b.max(r)));
-            let info = ffi::RenderInfo {
-                particles: particles.len() as u64,
-                skipped_nonfinite: particles.skipped_nonfinite as u64,
-                radius_min: rlo as f64,
-                radius_max: rhi as f64,
-                value_min: vlo as f64,
-                value_max: vhi as f64,
-                notes: particles.notes.join("\n"),
-                ..Default::default()
-            };
-            // The camera and transfer function are set before each render.
-            let tf =
-                fluidcast_view::TransferFunction::preset("viridis").map_err(|e| e.to_string())?;
-            let scene = Scene::new(particles, Camera::default(), tf);
-            self.prepared = Some(Prepared { scene, info });
+            let particles = Particles::from_dataset(&self.data, &particle_spec(s))
+                .map_err(|e| e.to_string())?;
+            self.prepared = Some(Prepared::of(particles)?);
         }
         self.prepared
             .as_ref()
             .ok_or_else(|| "fluidcast: particles missing".to_string())
+    }
+
+    /// Builds the particles from `src` (arrays the caller holds, read in place where they are
+    /// double precision) with the configured settings, instead of from the data set given
+    /// with `set_points`/`add_point_array` (which is emptied): what the Python module does with
+    /// numpy arrays.
+    pub fn prepare_source(&mut self, src: &impl ParticleSource) -> Result<ffi::RenderInfo, String> {
+        guarded("prepare_source", || {
+            let s = self
+                .settings
+                .as_ref()
+                .ok_or("fluidcast: configure() was not called")?;
+            let particles =
+                Particles::from_source(src, &particle_spec(s)).map_err(|e| e.to_string())?;
+            self.data = empty_dataset(&src.path().display().to_string());
+            self.external = true;
+            let p = Prepared::of(particles)?;
+            let info = p.info.clone();
+            self.prepared = Some(p);
+            Ok(info)
+        })
     }
 
     /// The backend for (backend, adapter), opened on first use and when either changes.
@@ -893,6 +951,12 @@ impl Renderer {
     /// The particles the data and settings make (built now if they were not).
     pub fn particles(&mut self) -> Result<&Particles, String> {
         Ok(self.prepared()?.scene.particles())
+    }
+
+    /// With particles from `prepare_source`: the values at the particles of point array
+    /// `name`, for iso-surfaces of it (`SurfaceSettings::iso_field`).
+    pub fn set_iso_attribute(&mut self, name: &str, values: Vec<f32>) {
+        self.iso_attribute = Some((name.to_string(), Arc::from(values)));
     }
 
     /// The field sums of the particles (as the settings build them) at `points` (world

@@ -1,6 +1,11 @@
 //! numpy arrays as slices: float32 and float64 read in place, anything else refused here
 //! (the Python layer converts other dtypes once, with `numpy.ascontiguousarray`).
 
+use std::borrow::Cow;
+use std::path::{Path, PathBuf};
+
+use fluidcast_io::{DataArray, ScalarType};
+use fluidcast_sph::{ParticleError, ParticleSource};
 use numpy::{PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
@@ -66,4 +71,74 @@ pub(crate) enum Values<'a> {
     F32(&'a [f32]),
     /// float64.
     F64(&'a [f64]),
+}
+
+/// Particles as numpy arrays, read in place: a [`ParticleSource`] whose points and arrays are
+/// borrowed for the build of the renderer's particles (float64 points are read as they are;
+/// float32 ones and every array are converted one at a time and dropped after use).
+pub(crate) struct NumpySource<'py> {
+    /// The name errors give.
+    pub path: PathBuf,
+    /// N×3 points.
+    pub points: Floats<'py>,
+    /// Point arrays: name, values, components.
+    pub arrays: Vec<(String, Floats<'py>, usize)>,
+    /// Field-data values (`support_radius`).
+    pub field: Vec<(String, f64)>,
+}
+
+impl NumpySource<'_> {
+    fn convert(v: Values<'_>) -> Vec<f64> {
+        match v {
+            Values::F32(s) => s.iter().map(|&x| f64::from(x)).collect(),
+            Values::F64(s) => s.to_vec(),
+        }
+    }
+
+    fn error(&self, e: PyErr) -> ParticleError {
+        ParticleError::Other {
+            file: self.path.clone(),
+            message: e.to_string(),
+        }
+    }
+}
+
+impl ParticleSource for NumpySource<'_> {
+    fn path(&self) -> &Path {
+        &self.path
+    }
+    fn num_points(&self) -> usize {
+        self.points.rows().0
+    }
+    fn field_scalar(&self, name: &str) -> Option<f64> {
+        self.field.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
+    }
+    fn arrays(&self) -> Vec<(String, usize)> {
+        self.arrays
+            .iter()
+            .map(|(n, _, k)| (n.clone(), *k))
+            .collect()
+    }
+    fn points(&self) -> Result<Cow<'_, [f64]>, ParticleError> {
+        match self.points.slice("points").map_err(|e| self.error(e))? {
+            Values::F64(s) => Ok(Cow::Borrowed(s)),
+            v => Ok(Cow::Owned(Self::convert(v))),
+        }
+    }
+    fn array(&self, name: &str) -> Result<Option<Cow<'_, DataArray>>, ParticleError> {
+        let Some((n, a, k)) = self.arrays.iter().find(|(n, _, _)| n == name) else {
+            return Ok(None);
+        };
+        let v = a.slice(n).map_err(|e| self.error(e))?;
+        let scalar_type = match v {
+            Values::F32(_) => ScalarType::F32,
+            Values::F64(_) => ScalarType::F64,
+        };
+        Ok(Some(Cow::Owned(DataArray {
+            name: n.clone(),
+            scalar_type,
+            num_components: *k,
+            values: Self::convert(v),
+        })))
+    }
 }

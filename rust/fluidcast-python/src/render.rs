@@ -3,7 +3,7 @@
 
 use fluidcast_backend::defaults;
 use fluidcast_cxx::{default_settings, CameraDesc, RenderInfo, Settings, SurfaceSettings};
-use fluidcast_sph::{FieldKind, Kernel};
+use fluidcast_sph::{Component, FieldKind, Kernel, Particles, Quantity};
 use fluidcast_view::TransferFunction;
 use numpy::{
     IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2,
@@ -12,7 +12,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::arrays::{Floats, Values};
+use crate::arrays::{Floats, NumpySource};
 use crate::value_error;
 
 /// A renderer kept across frames: its particles are built once per change of data or of the
@@ -21,7 +21,34 @@ use crate::value_error;
 pub struct PyRenderer {
     inner: Box<fluidcast_cxx::Renderer>,
     settings: Settings,
-    points: usize,
+    data: Option<Held>,
+}
+
+/// The numpy arrays of `set_data`, held (not copied) until the particles are built from them.
+struct Held {
+    name: String,
+    points: Py<PyAny>,
+    /// Name, array, components.
+    arrays: Vec<(String, Py<PyAny>, usize)>,
+    field: Vec<(String, f64)>,
+    n: usize,
+}
+
+impl Held {
+    /// The arrays as a particle source, borrowed for the GIL's lifetime `py`.
+    fn source<'py>(&self, py: Python<'py>) -> PyResult<NumpySource<'py>> {
+        let arrays = self
+            .arrays
+            .iter()
+            .map(|(n, a, k)| Ok((n.clone(), Floats::of(a.bind(py), n)?, *k)))
+            .collect::<PyResult<_>>()?;
+        Ok(NumpySource {
+            path: self.name.clone().into(),
+            points: Floats::of(self.points.bind(py), "points")?,
+            arrays,
+            field: self.field.clone(),
+        })
+    }
 }
 
 /// Sets `s.field` from `value` for each key named among `fields`, or refuses the key.
@@ -174,13 +201,14 @@ impl PyRenderer {
         PyRenderer {
             inner: fluidcast_cxx::new_renderer(),
             settings: default_settings(),
-            points: 0,
+            data: None,
         }
     }
 
     /// New particles: `points` (N×3 float32/float64, world space), point `arrays` ({name:
-    /// N or N×k array}) and `field` data ({name: number}, e.g. support_radius); `name`
-    /// appears in error messages.
+    /// N or N×k array of float32/float64}) and `field` data ({name: number}, e.g.
+    /// support_radius); `name` appears in error messages. The arrays are checked and held,
+    /// not copied: `configure` builds the renderer's particles from them.
     fn set_data(
         &mut self,
         name: &str,
@@ -188,8 +216,8 @@ impl PyRenderer {
         arrays: &Bound<'_, PyDict>,
         field: &Bound<'_, PyDict>,
     ) -> PyResult<()> {
-        let r = &mut self.inner;
-        r.begin_data(name);
+        self.data = None;
+        self.inner.begin_data(name);
         let p = Floats::of(points, "points")?;
         let shape = p.shape();
         if shape.len() != 2 || shape[1] != 3 {
@@ -197,35 +225,51 @@ impl PyRenderer {
                 "{name}: points of shape {shape:?}; expected (N, 3)"
             )));
         }
-        match p.slice("points")? {
-            Values::F32(v) => r.set_points_f32(v),
-            Values::F64(v) => r.set_points_f64(v),
-        }
-        .map_err(value_error)?;
-        self.points = shape[0];
+        p.slice(&format!("{name}: points"))?;
+        let n = shape[0];
+        let mut held = Vec::new();
         for (k, v) in arrays.iter() {
             let key: String = k.extract()?;
             let what = format!("{name}: point array '{key}'");
             let a = Floats::of(&v, &what)?;
-            let (_, components) = a.rows();
-            match a.slice(&what)? {
-                Values::F32(v) => r.add_point_array_f32(&key, components, v),
-                Values::F64(v) => r.add_point_array_f64(&key, components, v),
+            let (rows, components) = a.rows();
+            if rows != n || a.shape().is_empty() {
+                return Err(value_error(format!(
+                    "{what} has {} values, expected {n} points x {components} components",
+                    rows * components
+                )));
             }
-            .map_err(value_error)?;
+            a.slice(&what)?;
+            held.push((key, v.clone().unbind(), components));
         }
-        for (k, v) in field.iter() {
-            r.add_field_scalar(&k.extract::<String>()?, v.extract()?);
-        }
+        let field = field
+            .iter()
+            .map(|(k, v)| Ok((k.extract::<String>()?, v.extract::<f64>()?)))
+            .collect::<PyResult<_>>()?;
+        self.data = Some(Held {
+            name: name.to_string(),
+            points: points.clone().unbind(),
+            arrays: held,
+            field,
+            n,
+        });
         Ok(())
     }
 
     /// The settings of the renders that follow: a dict of `fluidcast_cxx::Settings`' fields
     /// (support_radius, kernel, error_tolerance, ...) over the mapper's defaults.
-    fn configure(&mut self, settings: &Bound<'_, PyDict>) -> PyResult<()> {
+    /// The particles are built here, from the arrays `set_data` holds (with the GIL held:
+    /// they are read in place).
+    fn configure(&mut self, py: Python<'_>, settings: &Bound<'_, PyDict>) -> PyResult<()> {
         let s = settings_of(settings)?;
         self.inner.configure(&s).map_err(value_error)?;
         self.settings = s;
+        let data = self
+            .data
+            .as_ref()
+            .ok_or_else(|| value_error("no particles: call set_data first"))?;
+        let src = data.source(py)?;
+        self.inner.prepare_source(&src).map_err(value_error)?;
         Ok(())
     }
 
@@ -286,8 +330,19 @@ impl PyRenderer {
 
     /// The iso-surfaces of the renders that follow: a dict of `fluidcast_cxx::SurfaceSettings`'
     /// fields (iso_values, iso_field, opacity, with_volume, shade, ...).
-    fn set_surfaces(&mut self, surfaces: &Bound<'_, PyDict>) -> PyResult<()> {
+    fn set_surfaces(&mut self, py: Python<'_>, surfaces: &Bound<'_, PyDict>) -> PyResult<()> {
         let s = surfaces_of(surfaces)?;
+        let named = |d: &Held| d.arrays.iter().any(|(n, _, _)| *n == s.iso_field);
+        if let Some(d) = self.data.as_ref().filter(|d| named(d)) {
+            if s.iso_field != self.settings.scalars && !s.iso_values.is_empty() {
+                let q = Quantity {
+                    array: s.iso_field.clone(),
+                    component: Component::Auto,
+                };
+                let v = Particles::values_of(&d.source(py)?, &q).map_err(value_error)?;
+                self.inner.set_iso_attribute(&s.iso_field, v);
+            }
+        }
         self.inner.set_surfaces(&s).map_err(value_error)
     }
 
@@ -412,6 +467,6 @@ impl PyRenderer {
     /// Particles in the last data set given.
     #[getter]
     fn points(&self) -> usize {
-        self.points
+        self.data.as_ref().map_or(0, |d| d.n)
     }
 }
