@@ -7,6 +7,7 @@ import json
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import fluidcast
 import numpy as np
@@ -19,7 +20,7 @@ PYSPH = "pysph_dambreak3d/dam_break_3d_fluid_01180.vtu"
 
 
 def cli(*args):
-    exe = shutil.which("fluidcast", path=str(__import__("pathlib").Path(sys.executable).parent))
+    exe = shutil.which("fluidcast", path=str(Path(sys.executable).parent))
     assert exe, "the fluidcast CLI is not installed beside this Python"
     r = subprocess.run([exe, *map(str, args)], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
@@ -151,3 +152,13 @@ def test_a_pysph_frame_with_its_own_radii_renders(tmp_path):
     a, b = read_png(tmp_path / "p.png"), read_png(tmp_path / "c.png")
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
     json.dumps(img.stats)  # plain Python values
+
+
+def test_the_numpy_example_draws_its_figure(tmp_path):
+    """examples/numpy_arrays.py: arrays (no file) to a matplotlib figure with a colour bar."""
+    import runpy
+
+    example = Path(__file__).resolve().parents[2] / "examples" / "numpy_arrays.py"
+    img = runpy.run_path(str(example))["main"](str(tmp_path / "figure.png"))
+    assert (tmp_path / "figure.png").stat().st_size > 10_000
+    assert img.stats["particles"] == 16000 and img.rgba[..., 3].max() > 0.9
