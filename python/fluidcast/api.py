@@ -59,10 +59,11 @@ class Particles:
         return f"<fluidcast.Particles: {self.n_points} points{where}; point arrays: {arrays}>"
 
 
-def read(path: str | os.PathLike, step: int = 0) -> Particles:
+def read(path: str | os.PathLike, step: int = 0, arrays=None) -> Particles:
     """Reads a particle file with fluidcast's checked reader: ``.vtu``, ``.vtp``, legacy
     ``.vtk``, ``.pvtu``/``.pvtp`` (with their pieces) or time step ``step`` of a ``.pvd``
-    series (its data sets appended). No VTK is needed.
+    series (its data sets appended). No VTK is needed. ``arrays``: the names of the point
+    arrays to read (default: all; the others are not decoded).
 
     Raises ``FileNotFoundError`` for a missing file and ``ValueError`` naming the file and the
     problem for a directory, a FIFO, a damaged or lying file."""
@@ -76,7 +77,7 @@ def read(path: str | os.PathLike, step: int = 0) -> Particles:
     if not stat.S_ISREG(mode):
         raise ValueError(f"{path}: not a regular file (a FIFO, socket or device), which "
                          "fluidcast does not read")
-    d = _core.read(str(path), int(step))
+    d = _core.read(str(path), int(step), None if arrays is None else [str(a) for a in arrays])
     return Particles(d["points"], d["point_data"], d["field_data"], path=d["path"],
                      time=d["time"], times=d["times"])
 
@@ -124,13 +125,14 @@ def _floats(values, what: str) -> np.ndarray:
     return np.ascontiguousarray(a)
 
 
-def _as_particles(particles) -> Particles:
-    """Particles from a path, a ``Particles``, a pyvista/VTK point set (anything with
-    ``points`` and ``point_data``) or an N×3 array."""
+def _as_particles(particles, needed=None) -> Particles:
+    """Particles from a path (reading the point arrays ``needed`` only, when given), a
+    ``Particles``, a pyvista/VTK point set (anything with ``points`` and ``point_data``) or an
+    N×3 array."""
     if isinstance(particles, Particles):
         return particles
     if isinstance(particles, (str, os.PathLike)):
-        return read(particles)
+        return read(particles, arrays=needed)
     if hasattr(particles, "points") and hasattr(particles, "point_data"):
         fd = getattr(particles, "field_data", {}) or {}
         return Particles(np.asarray(particles.points),
@@ -293,33 +295,39 @@ class Scene:
     and a GPU opened once (what a movie, an orbit or an interactive window wants).
 
     ``Scene(particles, scalars, **options).render(camera=..., size=...)``; the options are
-    :func:`render`'s, the ones about the data and how it is sampled."""
+    :func:`render`'s, the ones about the data and how it is sampled. ``arrays``: point arrays
+    to read besides the rendered, radius and volume ones when ``particles`` is a path (e.g. an
+    iso-surface's)."""
 
     def __init__(self, particles, scalars=None, *, component: int | None = None,
                  support_radius: float | None = None, radius_array: str | None = None,
                  radius_scale: float = 1.0, kernel: str = "cubic", field: str = "csph",
                  error_tolerance: float = 0.004, backend: str = "auto",
-                 adapter: str | None = None, mode: str = "auto", settings: dict | None = None):
-        p = _as_particles(particles)
+                 adapter: str | None = None, mode: str = "auto", settings: dict | None = None,
+                 arrays=()):
+        needed = [a for a in (scalars, radius_array, *arrays) if isinstance(a, str)]
+        p = _as_particles(particles, needed + list(_core.names()["volume_arrays"]))
         if p.points.ndim != 2 or p.points.shape[1:] != (3,) or p.n_points == 0:
             raise ValueError(f"particles: points of shape {p.points.shape}; expected (N, 3) "
                              "with N > 0 (the particles are empty)")
-        arrays, name = _scalars(p, scalars)
-        if radius_array is not None:
-            if radius_array not in p.point_data:
-                raise ValueError(f"radius_array: no point array '{radius_array}' in the "
-                                 "particles")
-            arrays[radius_array] = p.point_data[radius_array]
-        for extra in _core.names()["volume_arrays"]:  # what the particles' volumes use
-            if extra in p.point_data and extra not in arrays:
-                arrays[extra] = p.point_data[extra]
+        held, name = _scalars(p, scalars)
+        if radius_array is not None and radius_array not in p.point_data:
+            raise ValueError(f"radius_array: no point array '{radius_array}' in the particles")
+        # The float point arrays are held by reference (the build reads only those it needs:
+        # the radius, the volumes' and an iso-surface's arrays); others of those converted.
+        wanted = set(needed) | set(_core.names()["volume_arrays"])
+        for k, v in p.point_data.items():
+            dtype = np.asarray(v).dtype
+            if k not in held and (dtype in (np.float32, np.float64) or
+                                  (k in wanted and dtype.kind in "biu")):
+                held[k] = v
         self.particles = p
         self.scalars = name
         self._core = _core.Renderer()
         field_data = {k: float(np.ravel(v)[0]) for k, v in p.field_data.items()
                       if np.size(v) and np.asarray(v).dtype.kind in "biuf"}
         self._core.set_data(p.path or "particles", _floats(p.points, "points"),
-                            {k: _floats(v, f"point array '{k}'") for k, v in arrays.items()},
+                            {k: _floats(v, f"point array '{k}'") for k, v in held.items()},
                             field_data)
         self._core.configure(_settings(name, component, support_radius, radius_array,
                                        radius_scale, kernel, field, error_tolerance, backend,
@@ -417,7 +425,9 @@ def render(particles, scalars=None, *, camera=None, size=(800, 600), cmap=None, 
 
     Bad input (NaN radii, wrong-length arrays, a missing array, no points) raises
     ``ValueError`` with the library's message. The GIL is released while it renders."""
-    scene = Scene(particles, scalars, **options)
+    iso_array = () if str(isosurface_field).lower() in ("colour", "color", "density") \
+        else (str(isosurface_field),)
+    scene = Scene(particles, scalars, arrays=iso_array, **options)
     return scene.render(camera, size, cmap=cmap, tf=tf, clim=clim, opacity=opacity,
                         n_colors=n_colors, flip_scalars=flip_scalars,
                         opacity_unit_distance=opacity_unit_distance, isosurfaces=isosurfaces,

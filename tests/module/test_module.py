@@ -162,3 +162,21 @@ def test_the_numpy_example_draws_its_figure(tmp_path):
     img = runpy.run_path(str(example))["main"](str(tmp_path / "figure.png"))
     assert (tmp_path / "figure.png").stat().st_size > 10_000
     assert img.stats["particles"] == 16000 and img.rgba[..., 3].max() > 0.9
+
+
+@pytest.mark.parametrize("field", ["colour", "p"])
+def test_iso_surfaces_equal_the_cli(tmp_path, field):
+    """Iso-surfaces of the colour field and of another point array (its values handed to the
+    renderer from the numpy arrays) are the CLI's --iso within 1/255."""
+    data = shared(PYSPH)
+    value = 0.5 if field == "colour" else 1000.0
+    img = fluidcast.render(data, "velocity", radius_array="h", radius_scale=2.0,
+                           size=(120, 90), isosurfaces=[value], isosurface_field=field,
+                           backend="cpu")
+    img.save(tmp_path / "m.png")
+    cli("render", data, "--array", "velocity", "--radius-array", "h", "--radius-scale", "2",
+        "--iso", value, "--iso-field", field, "--size", "120x90", "--backend", "cpu",
+        "-o", tmp_path / "c.png")
+    a, b = read_png(tmp_path / "m.png"), read_png(tmp_path / "c.png")
+    assert (a != 255).any(axis=2).mean() > 0.05
+    assert np.abs(a.astype(int) - b.astype(int)).max() <= 1

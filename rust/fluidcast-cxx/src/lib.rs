@@ -1198,6 +1198,33 @@ mod tests {
             .map(|info| (rgba, depth, info))
     }
 
+    /// Particles built from a caller's source (`prepare_source`, what the Python module
+    /// does) render as the data set they came from; a change of the settings they depend on
+    /// drops them with a message, and iso-surfaces of another array need its values.
+    #[test]
+    fn particles_from_a_source_render_as_the_data_set() {
+        let (mut a, s, _) = big_cube(|i| (i % 7) as f32);
+        let want = render_40x30(&mut a).unwrap();
+        let mut b = new_renderer();
+        ready(&mut b);
+        b.configure(&s).unwrap();
+        b.prepare_source(&a.data).unwrap();
+        let got = render_40x30(&mut b).unwrap();
+        assert!(want.0.iter().any(|&v| v > 0.1));
+        assert_eq!((got.0, got.1), (want.0, want.1));
+        assert_eq!(got.2.particles, want.2.particles);
+        let e = b.set_surfaces(&surfaces(&[0.5], "other")).unwrap_err();
+        assert!(e.contains("point array 'other': not given"), "{e}");
+        b.set_iso_attribute("other", vec![0.0; got.2.particles as usize]);
+        b.set_surfaces(&surfaces(&[0.5], "other")).unwrap();
+        b.set_surfaces(&surfaces(&[], "colour")).unwrap();
+        let mut t = s.clone();
+        t.support_radius = 0.03;
+        b.configure(&t).unwrap();
+        let e = render_40x30(&mut b).unwrap_err();
+        assert!(e.contains("give them again"), "{e}");
+    }
+
     /// MemoryLimit: a limit that tiles the view renders the same image; one too small for
     /// any tile is an error naming the limit, and the next render without it works.
     #[test]

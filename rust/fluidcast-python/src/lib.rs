@@ -34,11 +34,18 @@ pub(crate) fn value_error(message: impl std::fmt::Display) -> PyErr {
 /// appended). Returns a dict: `points` (N×3 float64, world space), `point_data` and
 /// `field_data` ({name: array}, N×k for k > 1 components), `path`, `time` (None for a single
 /// file) and `times` (every time step's time, a `.pvd`'s; [] otherwise).
+/// `arrays`: the point arrays to decode (None: every one); the rest are not read.
 #[pyfunction]
-#[pyo3(signature = (path, step = 0))]
-fn read<'py>(py: Python<'py>, path: &str, step: usize) -> PyResult<Bound<'py, PyDict>> {
+#[pyo3(signature = (path, step = 0, arrays = None))]
+fn read<'py>(
+    py: Python<'py>,
+    path: &str,
+    step: usize,
+    arrays: Option<Vec<String>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let which = arrays.map_or(Arrays::All, Arrays::Named);
     let (ds, time, times) = py
-        .detach(|| read_frame(Path::new(path), step))
+        .detach(|| read_frame(Path::new(path), step, &which))
         .map_err(value_error)?;
     let out = PyDict::new(py);
     let points: Vec<f64> = ds.points.iter().flatten().copied().collect();
@@ -56,6 +63,7 @@ fn read<'py>(py: Python<'py>, path: &str, step: usize) -> PyResult<Bound<'py, Py
 fn read_frame(
     path: &Path,
     step: usize,
+    arrays: &Arrays,
 ) -> Result<(fluidcast_io::Dataset, Option<f64>, Vec<f64>), String> {
     let input = Input::open(path).map_err(|e| e.to_string())?;
     let frames = input.frames();
@@ -67,9 +75,7 @@ fn read_frame(
             frames.len().saturating_sub(1)
         )
     })?;
-    let ds = input
-        .read_frame(frame, &Arrays::All)
-        .map_err(|e| e.to_string())?;
+    let ds = input.read_frame(frame, arrays).map_err(|e| e.to_string())?;
     if let Some(dropped) = ds.cells.dropped() {
         return Err(fluidcast_cxx::mesh_refusal(
             &ds.path.display().to_string(),
