@@ -974,6 +974,22 @@ impl Renderer {
     }
 }
 
+/// No iso-surfaces, and for those asked for later: the colour field, opaque, lit with
+/// vtkVolumeProperty's default coefficients (pyvista's `add_volume` defaults).
+pub fn default_surfaces() -> SurfaceSettings {
+    SurfaceSettings {
+        iso_values: Vec::new(),
+        iso_field: "colour".into(),
+        opacity: 1.0,
+        with_volume: false,
+        shade: true,
+        ambient: 0.1,
+        diffuse: 0.7,
+        specular: 0.2,
+        specular_power: 10.0,
+    }
+}
+
 /// The settings a new mapper has (vtkFluidCastVolumeMapper's defaults, the CLI's): the
 /// particle density (no array) with the data's radius, cubic kernel, CSPH, error tolerance
 /// 0.004, backend auto, the plan's defaults.
@@ -1161,13 +1177,7 @@ mod tests {
         ffi::SurfaceSettings {
             iso_values: values.to_vec(),
             iso_field: field.into(),
-            opacity: 1.0,
-            with_volume: false,
-            shade: true,
-            ambient: 0.1,
-            diffuse: 0.7,
-            specular: 0.2,
-            specular_power: 10.0,
+            ..default_surfaces()
         }
     }
 

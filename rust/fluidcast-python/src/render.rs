@@ -2,7 +2,9 @@
 //! by the VTK mapper's engine ([`fluidcast_cxx::Renderer`]) with the GIL released.
 
 use fluidcast_backend::defaults;
-use fluidcast_cxx::{default_settings, CameraDesc, RenderInfo, Settings, SurfaceSettings};
+use fluidcast_cxx::{
+    default_settings, default_surfaces, CameraDesc, RenderInfo, Settings, SurfaceSettings,
+};
 use fluidcast_sph::{Component, FieldKind, Kernel, Particles, Quantity};
 use fluidcast_view::TransferFunction;
 use numpy::{
@@ -126,17 +128,7 @@ fn settings_of(d: &Bound<'_, PyDict>) -> PyResult<Settings> {
 
 /// The iso-surface settings `d` gives (keys: `fluidcast_cxx::SurfaceSettings`' fields).
 fn surfaces_of(d: &Bound<'_, PyDict>) -> PyResult<SurfaceSettings> {
-    let mut s = SurfaceSettings {
-        iso_values: Vec::new(),
-        iso_field: "colour".into(),
-        opacity: 1.0,
-        with_volume: false,
-        shade: true,
-        ambient: 0.1,
-        diffuse: 0.7,
-        specular: 0.2,
-        specular_power: 10.0,
-    };
+    let mut s = default_surfaces();
     for (k, value) in d.iter() {
         let key: String = k.extract()?;
         settings_from!(
