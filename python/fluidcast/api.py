@@ -303,8 +303,8 @@ class Scene:
                  support_radius: float | None = None, radius_array: str | None = None,
                  radius_scale: float = 1.0, kernel: str = "cubic", field: str = "csph",
                  error_tolerance: float = 0.004, backend: str = "auto",
-                 adapter: str | None = None, mode: str = "auto", settings: dict | None = None,
-                 arrays=()):
+                 adapter: str | None = None, mode: str = "auto", spp: int | None = None,
+                 shadows: bool = False, settings: dict | None = None, arrays=()):
         needed = [a for a in (scalars, radius_array, *arrays) if isinstance(a, str)]
         p = _as_particles(particles, needed + list(_core.names()["volume_arrays"]))
         if p.points.ndim != 2 or p.points.shape[1:] != (3,) or p.n_points == 0:
@@ -329,9 +329,12 @@ class Scene:
         self._core.set_data(p.path or "particles", _floats(p.points, "points"),
                             {k: _floats(v, f"point array '{k}'") for k, v in held.items()},
                             field_data)
+        extra = dict(settings or {}, shadows=bool(shadows))
+        if spp is not None:
+            extra["samples_per_pixel"] = int(_checked("spp", "SamplesPerPixel", spp))
         self._core.configure(_settings(name, component, support_radius, radius_array,
                                        radius_scale, kernel, field, error_tolerance, backend,
-                                       adapter, mode, settings))
+                                       adapter, mode, extra))
         self.info = self._core.prepare()
         self.defaults = self._core.defaults()
 
@@ -419,9 +422,9 @@ def render(particles, scalars=None, *, camera=None, size=(800, 600), cmap=None, 
     * ``depth_limit``: H×W view depths past which nothing is composited (opaque geometry).
     * ``options``: :class:`Scene`'s (``support_radius``, ``radius_array``,
       ``radius_scale``, ``kernel``, ``field`` ("csph", "sph", "density", "rbf"),
-      ``error_tolerance``, ``backend``, ``adapter``, ``mode``, ``component``, and
-      ``settings`` for the rest of the library's table, e.g. ``{"samples_per_pixel": 4,
-      "shadows": True}``).
+      ``error_tolerance``, ``backend``, ``adapter``, ``mode``, ``component``, ``spp``
+      (the RBF field's and shadows' passes) and ``shadows``, and ``settings`` for the rest of
+      the library's settings, e.g. ``{"rbf_classification": "pre", "tiles": 4}``).
 
     Bad input (NaN radii, wrong-length arrays, a missing array, no points) raises
     ``ValueError`` with the library's message. The GIL is released while it renders."""

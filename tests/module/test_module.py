@@ -180,3 +180,20 @@ def test_iso_surfaces_equal_the_cli(tmp_path, field):
     a, b = read_png(tmp_path / "m.png"), read_png(tmp_path / "c.png")
     assert (a != 255).any(axis=2).mean() > 0.05
     assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
+
+
+@pytest.mark.parametrize("extra, options", [
+    (["--field", "rbf", "--spp", "2"], dict(field="rbf", spp=2)),
+    (["--shadows", "--spp", "2"], dict(shadows=True, spp=2)),
+])
+def test_rbf_and_shadows_equal_the_cli(tmp_path, extra, options):
+    """The stochastic march (the RBF field, an SPH field with shadows) is the CLI's: the same
+    seed and passes give the same image within 1/255."""
+    data = Path(__file__).resolve().parents[2] / "examples" / "data" / "sample_column.vtu"
+    img = fluidcast.render(data, "velocity", size=(100, 75), backend="cpu", **options)
+    img.save(tmp_path / "m.png")
+    cli("render", data, "--array", "velocity", "--size", "100x75", "--backend", "cpu", *extra,
+        "-o", tmp_path / "c.png")
+    a, b = read_png(tmp_path / "m.png"), read_png(tmp_path / "c.png")
+    assert (a != 255).any(axis=2).mean() > 0.05
+    assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
