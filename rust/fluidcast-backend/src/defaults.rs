@@ -54,3 +54,91 @@ pub fn auto_range(particles: &Particles, kernel: Kernel, field: FieldKind) -> (f
         (lo - 0.5, lo + 0.5)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// An n×n×n lattice of spacing `s` from `origin`, radius 2s, value `value(i)`.
+    fn lattice(n: usize, s: f32, origin: [f32; 3], value: impl Fn(usize) -> f32) -> Particles {
+        let mut positions = Vec::new();
+        for i in 0..n * n * n {
+            let (x, y, z) = (i % n, (i / n) % n, i / (n * n));
+            positions.push([
+                origin[0] + x as f32 * s,
+                origin[1] + y as f32 * s,
+                origin[2] + z as f32 * s,
+            ]);
+        }
+        let m = positions.len();
+        Particles {
+            positions,
+            radii: vec![2.0 * s; m],
+            volumes: vec![s * s * s; m],
+            masses: vec![s * s * s; m],
+            values: (0..m).map(value).collect(),
+            skipped_nonfinite: 0,
+            notes: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_automatic_camera_sees_every_support_and_looks_down_minus_z() {
+        let p = lattice(6, 0.1, [1.0, -2.0, 5.0], |_| 1.0);
+        let (lo, hi) = p.support_bounds();
+        for parallel in [false, true] {
+            let c = auto_camera(&p, parallel);
+            let dir = DVec3::from(c.focal_point) - DVec3::from(c.position);
+            assert!(
+                dir.x.abs() < 1e-9 && dir.y.abs() < 1e-9 && dir.z < 0.0,
+                "{dir:?}"
+            );
+            let f = c.frame(200, 150).unwrap();
+            let mut seen = 0;
+            for k in 0..8 {
+                let corner =
+                    [0, 1, 2].map(|a| f64::from(if k >> a & 1 == 1 { hi[a] } else { lo[a] }));
+                let (x, y) = f.project(DVec3::from(corner)).unwrap();
+                assert!(
+                    (0.0..=200.0).contains(&x) && (0.0..=150.0).contains(&y),
+                    "{x} {y}"
+                );
+                // The box fills the view along one axis at least (not a speck).
+                seen += usize::from(x < 60.0 || x > 140.0 || y < 45.0 || y > 105.0);
+            }
+            assert!(
+                seen >= 4,
+                "parallel {parallel}: the box is a speck in the view"
+            );
+        }
+    }
+
+    #[test]
+    fn the_unit_distance_is_the_diagonal_over_the_cube_root_of_the_count() {
+        let p = lattice(8, 0.25, [0.0; 3], |_| 1.0);
+        // Supports reach 2 × 0.25 past the lattice's 7 × 0.25 on each side: 2.75 per axis.
+        let want = (3.0f64 * 2.75 * 2.75).sqrt() / 8.0;
+        assert!(
+            (auto_unit_distance(&p) - want).abs() < 1e-6,
+            "{}",
+            auto_unit_distance(&p)
+        );
+    }
+
+    #[test]
+    fn the_range_is_the_values_or_the_typical_sum_and_a_point_is_widened() {
+        let p = lattice(5, 0.1, [0.0; 3], |i| i as f32 * 0.5);
+        let (lo, hi) = auto_range(&p, Kernel::CubicSpline, FieldKind::Csph);
+        assert_eq!((lo, hi), (0.0, 62.0));
+        let c = lattice(5, 0.1, [0.0; 3], |_| 3.0);
+        assert_eq!(
+            auto_range(&c, Kernel::CubicSpline, FieldKind::Csph),
+            (2.5, 3.5)
+        );
+        // The density's typical sum: about m / V = 1 inside a lattice of V = m.
+        let (lo, hi) = auto_range(&c, Kernel::CubicSpline, FieldKind::Density);
+        assert_eq!(lo, 0.0);
+        assert!(hi > 0.5 && hi < 1.5, "{hi}");
+    }
+}
