@@ -105,7 +105,7 @@ mod tests {
                     "{x} {y}"
                 );
                 // The box fills the view along one axis at least (not a speck).
-                seen += usize::from(x < 60.0 || x > 140.0 || y < 45.0 || y > 105.0);
+                seen += usize::from(!(60.0..=140.0).contains(&x) || !(45.0..=105.0).contains(&y));
             }
             assert!(
                 seen >= 4,
