@@ -81,7 +81,10 @@ class ParticlesOverlay:
             return
         z = vtkFloatArray()
         win.GetZbufferData(x0, y0, x0 + w - 1, y0 + h - 1, z)
-        zbuf = vtk_to_numpy(z).reshape(h, w)
+        if z.GetNumberOfValues() == w * h:
+            zbuf = vtk_to_numpy(z).reshape(h, w)
+        else:  # the depth could not be read: nothing opaque is assumed (as the mapper does)
+            zbuf = np.ones((h, w), np.float32)
         cam = renderer.GetActiveCamera()
         key = (cam.GetPosition(), cam.GetFocalPoint(), cam.GetViewUp(), cam.GetViewAngle(),
                cam.GetParallelProjection(), cam.GetParallelScale(), w, h, hash(zbuf.tobytes()))
