@@ -31,7 +31,21 @@ pub fn auto_unit_distance(particles: &Particles) -> f64 {
 /// The colour map's range for `field`: the attribute's range for CSPH; for sums, 0 up to
 /// the typical field magnitude at a particle (a sample of 2000); a point widened to 1.
 pub fn auto_range(particles: &Particles, kernel: Kernel, field: FieldKind) -> (f64, f64) {
-    let (lo, hi) = match field {
+    widened(data_range(particles, kernel, field))
+}
+
+/// `range` itself, or a point `lo = hi` widened to `lo ± 0.5` (a colour map needs a span).
+pub fn widened((lo, hi): (f64, f64)) -> (f64, f64) {
+    if lo < hi {
+        (lo, hi)
+    } else {
+        (lo - 0.5, lo + 0.5)
+    }
+}
+
+/// [`auto_range`] before a point is widened: what a series' frames unite.
+pub fn data_range(particles: &Particles, kernel: Kernel, field: FieldKind) -> (f64, f64) {
+    match field {
         FieldKind::Csph => {
             let r = particles.value_range();
             (f64::from(r.0), f64::from(r.1))
@@ -47,11 +61,6 @@ pub fn auto_range(particles: &Particles, kernel: Kernel, field: FieldKind) -> (f
             let v = s.iter().filter_map(|s| s.value(field));
             (0.0, v.fold(0.0, f64::max))
         }
-    };
-    if lo < hi {
-        (lo, hi)
-    } else {
-        (lo - 0.5, lo + 0.5)
     }
 }
 

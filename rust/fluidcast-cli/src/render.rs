@@ -4,8 +4,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_backend::{
-    Backend, BackendError, March, Marched, Mode, PlanItem, RenderPlan, RenderStats, Rendered,
-    Renderer, Scene, Tiles,
+    defaults, Backend, BackendError, March, Marched, Mode, PlanItem, RenderPlan, RenderStats,
+    Rendered, Renderer, Scene, Tiles,
 };
 use fluidcast_image::Image;
 use fluidcast_io::{Arrays, Frame, Input};
@@ -16,7 +16,7 @@ use serde_json::json;
 
 use crate::options::ParticleArgs;
 use crate::surface::{IsoSource, SurfaceArgs};
-use crate::view::{SamplingArgs, ViewArgs};
+use crate::view::{RangeChoice, SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -662,6 +662,41 @@ fn show_progress(progress: &fluidcast_backend::Progress, finished: &std::sync::a
     }
 }
 
+/// The colour range over the frames `frames` of a series (`--range all`): each frame read
+/// (only the arrays its particles need) and its values' range found as a single file's would
+/// be, the ranges united, and a point widened only if the union is one.
+fn series_range(
+    input: &Input,
+    all: &[Frame],
+    frames: &[usize],
+    recipe: &Recipe,
+    params: &fluidcast_backend::RenderParams,
+) -> Result<(f64, f64)> {
+    let bar = progress_bar(
+        frames.len(),
+        "frames read for the colour range (--range all)",
+    );
+    let mut range = (f64::INFINITY, f64::NEG_INFINITY);
+    for &fi in frames {
+        let l = load(input, &all[fi], recipe, fi).context(
+            "reading every frame for the colour range (--range all; --range first renders \
+             the frames before this one)",
+        )?;
+        let (lo, hi) = defaults::data_range(&l.particles, params.kernel, params.field);
+        range = (range.0.min(lo), range.1.max(hi));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(defaults::widened(range))
+}
+
+/// Whether the plan colours an RBF field by its density (its range comes from a render).
+fn colours_by_density(plan: &RenderPlan) -> bool {
+    plan.march.as_ref().is_some_and(|m| {
+        matches!(&m.field, Marched::Rbf(o) if o.colouring == fluidcast_backend::Colouring::Density)
+    })
+}
+
 /// What stays from frame to frame of one `fluidcast render`.
 struct Job<'a> {
     a: &'a RenderArgs,
@@ -675,13 +710,15 @@ struct Job<'a> {
     several: bool,
     /// `--background`, parsed once.
     background: [f32; 3],
+    /// Whether a frame outside the first frame's range was reported (`--range first`).
+    warned_range: bool,
 }
 
 impl Job<'_> {
     /// The scene of one loaded frame; the first sets the camera and transfer function.
     fn scene(&mut self, particles: Particles) -> Result<Scene> {
         let (camera, tf) = match self.view.take() {
-            Some(v) => v,
+            Some((camera, tf)) => (camera, self.frame_range(&particles, tf)?),
             None => {
                 print_notes(&particles.notes);
                 let base = self.a.view.base_tf()?;
@@ -692,6 +729,34 @@ impl Job<'_> {
             }
         };
         Ok(Scene::new(particles, camera, tf))
+    }
+
+    /// The colour map of a frame after the first: its own range with `--range frame`; the
+    /// series' otherwise, with a warning (once) where `--range first` saturates this frame.
+    fn frame_range(
+        &mut self,
+        particles: &Particles,
+        tf: fluidcast_view::TransferFunction,
+    ) -> Result<fluidcast_view::TransferFunction> {
+        let p = &self.plan.params;
+        let choice = self.a.view.range_choice()?;
+        if choice == RangeChoice::Frame {
+            let (lo, hi) = defaults::auto_range(particles, p.kernel, p.field);
+            return Ok(tf.with_range(lo, hi)?);
+        }
+        let (lo, hi) = defaults::data_range(particles, p.kernel, p.field);
+        let (a, b) = tf.range;
+        let slack = 0.01 * (b - a);
+        if choice == RangeChoice::First && (lo < a - slack || hi > b + slack) && !self.warned_range
+        {
+            eprintln!(
+                "warning: a frame's values [{lo:.6}, {hi:.6}] lie outside the colour range \
+                 [{a:.6}, {b:.6}] of the first frame (--range first): they saturate; \
+                 --range all (the default) covers every frame"
+            );
+            self.warned_range = true;
+        }
+        Ok(tf)
     }
 
     /// The plan of one frame: its iso-surface values, and the march's passes and light
@@ -719,10 +784,7 @@ impl Job<'_> {
         let (time, file) = &self.all[loaded.index];
         let mut scene = self.scene(loaded.particles)?;
         let plan = self.frame_plan(&scene, loaded.iso_values)?;
-        let density_rbf = plan.march.as_ref().is_some_and(|m| {
-            matches!(&m.field, Marched::Rbf(o) if o.colouring == fluidcast_backend::Colouring::Density)
-        });
-        if first && density_rbf && !a.view.has_range() {
+        if first && colours_by_density(&plan) && !a.view.has_range() {
             let (lo, hi) = self
                 .renderer
                 .rbf_density_range(&mut scene, &plan)
@@ -825,7 +887,7 @@ impl Job<'_> {
     }
 }
 
-pub fn run(a: RenderArgs) -> Result<()> {
+pub fn run(mut a: RenderArgs) -> Result<()> {
     let background = parse_background(&a.background)?;
     let input = Input::open(&a.input)?;
     if let Input::Series(c) = &input {
@@ -835,6 +897,23 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let frames = select_frames(&a, &input, all.len())?;
     let spec = a.particles.spec()?;
     let (plan, renderer) = base_plan(&a)?;
+    let scan = frames.len() > 1 && a.view.range_choice()? == RangeChoice::All;
+    if scan && !colours_by_density(&plan) {
+        let recipe = Recipe {
+            spec: &spec,
+            surface: &a.surface,
+            array: a.particles.array.as_deref(),
+        };
+        let range = series_range(&input, &all, &frames, &recipe, &plan.params)?;
+        eprintln!(
+            "note: colour range [{:?}, {:?}] over the {} frames (--range all; first or frame \
+             choose otherwise)",
+            range.0,
+            range.1,
+            frames.len()
+        );
+        a.view.fix_range(range);
+    }
     let recipe = Recipe {
         spec: &spec,
         surface: &a.surface,
@@ -850,6 +929,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         stats: Vec::new(),
         several: frames.len() > 1,
         background,
+        warned_range: false,
     };
     let started = Instant::now();
     for_each_frame(&input, &all, &frames, &recipe, !a.no_prefetch, |f| {

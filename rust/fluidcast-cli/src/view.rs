@@ -39,7 +39,10 @@ pub struct ViewArgs {
     /// ParaView colour-map preset .json file.
     #[arg(long, default_value = "Viridis")]
     tf: String,
-    /// Data range mapped onto the colour map, lo,hi (default: the first frame's value range).
+    /// Data range mapped onto the colour map: lo,hi; or, from the data, `all` (a series: every
+    /// rendered frame's values, read before the first frame renders; the default), `first`
+    /// (the first frame's, kept for the series) or `frame` (each frame its own). One file:
+    /// its own values.
     #[arg(long, allow_hyphen_values = true)]
     range: Option<String>,
     /// Distance (world units) over which the transfer function's opacity applies, as
@@ -188,10 +191,42 @@ impl SamplingArgs {
     }
 }
 
+/// How the colour map's range is chosen (`--range`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RangeChoice {
+    /// Every rendered frame's values (a series' default).
+    All,
+    /// The first frame's, kept for the series.
+    First,
+    /// Each frame its own.
+    Frame,
+    /// lo, hi as given.
+    Fixed(f64, f64),
+}
+
 impl ViewArgs {
-    /// Whether --range sets the colour map's range (else the data do).
+    /// Whether --range sets the colour map's range as numbers (else the data do).
     pub fn has_range(&self) -> bool {
-        self.range.is_some()
+        matches!(self.range_choice(), Ok(RangeChoice::Fixed(..)))
+    }
+
+    /// What --range asks for.
+    pub fn range_choice(&self) -> Result<RangeChoice> {
+        Ok(match self.range.as_deref().map(str::trim) {
+            None | Some("all") => RangeChoice::All,
+            Some("first") => RangeChoice::First,
+            Some("frame") => RangeChoice::Frame,
+            Some(r) => {
+                let (lo, hi) =
+                    parse_pair(r, "--range").context("--range takes lo,hi, all, first or frame")?;
+                RangeChoice::Fixed(lo, hi)
+            }
+        })
+    }
+
+    /// Sets the colour map's range to `range` (a series' range found before its first frame).
+    pub fn fix_range(&mut self, (lo, hi): (f64, f64)) {
+        self.range = Some(format!("{lo:?},{hi:?}"));
     }
 
     /// The transfer function as named, with --opacity-scale applied (range and unit distance
@@ -262,9 +297,9 @@ impl ViewArgs {
         let a = self;
         let mut tf = base.clone();
         let cam = a.camera(particles)?;
-        let (lo, hi) = match &a.range {
-            Some(r) => parse_pair(r, "--range")?,
-            None => defaults::auto_range(particles, params.kernel, params.field),
+        let (lo, hi) = match a.range_choice()? {
+            RangeChoice::Fixed(lo, hi) => (lo, hi),
+            _ => defaults::auto_range(particles, params.kernel, params.field),
         };
         tf = tf.with_range(lo, hi)?;
         tf.unit_distance = match a.opacity_unit_distance {

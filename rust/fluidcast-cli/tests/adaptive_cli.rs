@@ -272,10 +272,11 @@ fn ascii_vtu(n: usize, pts: &str, vals: &str) -> String {
     )
 }
 
-/// A series renders each frame's own particles under the first frame's camera and colour
-/// range: frame 1 of the series equals frame 1's file rendered alone with frame 0's saved
-/// camera and value range, and differs from frame 0 and from frame 1 under its own automatic
-/// view.
+/// A series renders each frame's own particles under the first frame's camera and, with
+/// `--range first`, its colour range: frame 1 of the series equals frame 1's file rendered
+/// alone with frame 0's saved camera and value range, and differs from frame 0 and from
+/// frame 1 under its own automatic view. With `--range frame` frame 1 takes its own range
+/// under the series' camera.
 #[test]
 fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     let d = tempfile::tempdir().unwrap();
@@ -310,7 +311,14 @@ fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     render(
         "s.pvd",
         "f_%03d.exr",
-        &["--frames", "0:2", "--save-camera", cam.to_str().unwrap()],
+        &[
+            "--frames",
+            "0:2",
+            "--save-camera",
+            cam.to_str().unwrap(),
+            "--range",
+            "first",
+        ],
     );
     render("a.vtu", "a.exr", &[]);
     // a.vtu's values span [0, 5/8]: the range the series keeps.
@@ -327,8 +335,21 @@ fn series_frames_render_their_own_particles_under_the_first_frames_view() {
     assert_eq!(compare(&p("f_001.exr"), &p("b_fixed.exr")), (0.0, 0.0));
     assert!(compare(&p("f_001.exr"), &p("f_000.exr")).0 > 0.1);
     assert!(compare(&p("f_001.exr"), &p("b_auto.exr")).0 > 0.1);
+    // Each frame its own range: frame 1 as b.vtu alone under the series' camera.
+    render(
+        "s.pvd",
+        "h_%03d.exr",
+        &["--frames", "0:2", "--range", "frame"],
+    );
+    render("b.vtu", "b_cam.exr", &["--camera", cam.to_str().unwrap()]);
+    assert_eq!(compare(&p("h_001.exr"), &p("b_cam.exr")), (0.0, 0.0));
+    assert!(compare(&p("h_001.exr"), &p("f_001.exr")).0 > 0.1);
     // Read in turn instead of one frame ahead: the same frames.
-    render("s.pvd", "g_%03d.exr", &["--frames", "0:2", "--no-prefetch"]);
+    render(
+        "s.pvd",
+        "g_%03d.exr",
+        &["--frames", "0:2", "--no-prefetch", "--range", "first"],
+    );
     for k in ["000", "001"] {
         let (f, g) = (p(&format!("f_{k}.exr")), p(&format!("g_{k}.exr")));
         assert_eq!(compare(&f, &g), (0.0, 0.0), "frame {k}");
@@ -399,8 +420,10 @@ fn the_parts_of_one_time_render_as_one_frame() {
     assert!(ok && !err.contains("data sets at t"), "{err}");
 }
 
-/// A damaged frame in the middle of a series, read one frame ahead: the frames before it are
-/// written, the error names the file, and nothing after it is rendered.
+/// A damaged frame in the middle of a series, read one frame ahead (`--range first`): the
+/// frames before it are written, the error names the file, and nothing after it is
+/// rendered. By default (`--range all`) every frame is read for the colour range before the
+/// first renders: the same error comes first, saying so, and nothing is written.
 #[test]
 fn a_damaged_frame_stops_a_prefetched_series_with_its_name() {
     let d = tempfile::tempdir().unwrap();
@@ -429,6 +452,13 @@ fn a_damaged_frame_stops_a_prefetched_series_with_its_name() {
         "0.2",
     ];
     let (ok, _, err) = run(&args);
+    assert!(!ok);
+    assert!(
+        err.contains("b.vtu") && err.contains("--range all"),
+        "{err}"
+    );
+    assert!(!p("f_000.png").exists());
+    let (ok, _, err) = run(&[&args[..], &["--range", "first"]].concat());
     assert!(!ok);
     assert!(err.contains("b.vtu"), "{err}");
     assert!(p("f_000.png").exists());

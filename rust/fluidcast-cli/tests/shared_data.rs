@@ -99,3 +99,112 @@ fn double_dam_break_encodings_give_identical_images() {
         assert_eq!(img, &images[0]);
     }
 }
+
+/// Distinct colours among the drawn (not white) pixels of a PNG.
+fn colours(png: &Path) -> usize {
+    let img = fluidcast_image::Image::read(png).unwrap();
+    let mut seen: Vec<[u8; 3]> = img
+        .rgba
+        .iter()
+        .map(|p| [0, 1, 2].map(|k| (p[k] * 255.0).round() as u8))
+        .filter(|c| *c != [255; 3])
+        .collect();
+    seen.sort_unstable();
+    seen.dedup();
+    seen.len()
+}
+
+/// The double dam break series starts at rest (|v| constant): by default its colour range
+/// covers every frame, so frames 1–9 are each the file rendered alone with that range under
+/// the series' camera, and keep their colours; `--range first` saturates them (with a
+/// warning), and `--range frame` gives each frame its own range.
+#[test]
+fn a_series_range_covers_every_frame() {
+    let Some(pvd) = shared("splash_doubledambreak/DoubleDamBreak_r0.0125.pvd") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    let cam = p("cam.json");
+    let (c, s) = (cam.to_str().unwrap(), p("f_%02d.png"));
+    // The opacity unit distance given (else the series keeps the first frame's, and a file
+    // alone takes its own).
+    let args = [
+        "render",
+        pvd.to_str().unwrap(),
+        "-o",
+        s.to_str().unwrap(),
+        "--size",
+        "96x72",
+        "--opacity-unit-distance",
+        "0.05",
+    ];
+    let (code, _, err) =
+        common::run(&[&args[..], &["--array", "velocity:mag", "--save-camera", c]].concat());
+    assert_eq!(code, Some(0), "{err}");
+    let note = err
+        .lines()
+        .find(|l| l.starts_with("note: colour range ["))
+        .expect(&err);
+    let range: Vec<f64> = note["note: colour range [".len()..]
+        .split(']')
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|v| v.parse().unwrap())
+        .collect();
+    let range = format!("{:?},{:?}", range[0], range[1]);
+    let files = fluidcast_io::read_collection(&pvd).unwrap();
+    let files: Vec<PathBuf> = files.steps().map(|s| s[0].file.clone()).collect();
+    assert_eq!(files.len(), 10);
+    let first = p("g_%02d.png");
+    let (code, _, err) = common::run(&[
+        "render",
+        pvd.to_str().unwrap(),
+        "-o",
+        first.to_str().unwrap(),
+        "--size",
+        "96x72",
+        "--array",
+        "velocity:mag",
+        "--range",
+        "first",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("--range all (the default) covers every frame"),
+        "{err}"
+    );
+    for (k, file) in files.iter().enumerate().skip(1) {
+        let alone = p(&format!("alone_{k}.png"));
+        render(
+            file,
+            &alone,
+            &[
+                "--array",
+                "velocity:mag",
+                "--camera",
+                c,
+                "--range",
+                &range,
+                "--opacity-unit-distance",
+                "0.05",
+            ],
+        );
+        let series = p(&format!("f_{k:02}.png"));
+        let (a, b) = (
+            fluidcast_image::Image::read(&series).unwrap(),
+            fluidcast_image::Image::read(&alone).unwrap(),
+        );
+        assert_eq!(common::max_diff(&a, &b), 0.0, "frame {k}");
+        if k >= 3 {
+            // In motion: many colours under the series' range, fewer where the first
+            // frame's range saturates them.
+            let (all, sat) = (colours(&series), colours(&p(&format!("g_{k:02}.png"))));
+            assert!(
+                all > 100 && all > 2 * sat,
+                "frame {k}: {all} colours, {sat} with --range first"
+            );
+        }
+    }
+}
