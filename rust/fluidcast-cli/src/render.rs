@@ -457,15 +457,9 @@ fn for_each_frame(
     })
 }
 
-/// One line per written frame when there is no progress bar.
-fn report_frame(out: &Path, stats: &RenderStats) {
-    // `total` already covers the renderer's own stages (bin, raycast).
-    let total: f64 = stats
-        .stages
-        .iter()
-        .filter(|(k, _)| !matches!(*k, "bin" | "grid" | "adapt" | "resample" | "raycast"))
-        .map(|(_, v)| v)
-        .sum();
+/// One line per written frame when there is no progress bar; `total` is the frame's wall
+/// time in milliseconds (reading, particles, render and writing).
+fn report_frame(out: &Path, stats: &RenderStats, total: f64) {
     let peak = fluidcast_mem::peak_resident()
         .map(|b| format!(", peak memory {}", fluidcast_mem::Bytes(b)))
         .unwrap_or_default();
@@ -712,6 +706,8 @@ struct Job<'a> {
     background: [f32; 3],
     /// Whether a frame outside the first frame's range was reported (`--range first`).
     warned_range: bool,
+    /// When the frame being rendered was handed over (read and particles before it).
+    frame_started: Option<Instant>,
 }
 
 impl Job<'_> {
@@ -779,6 +775,7 @@ impl Job<'_> {
 
     /// Renders one loaded frame and writes it.
     fn frame(&mut self, loaded: Loaded) -> Result<()> {
+        self.frame_started = Some(Instant::now());
         let a = self.a;
         let first = self.view.is_none();
         let (time, file) = &self.all[loaded.index];
@@ -852,7 +849,12 @@ impl Job<'_> {
         self.stats.push(js);
         match &self.progress {
             Some(pb) => pb.inc(1),
-            None => report_frame(&out, &stats),
+            None => {
+                let render = self
+                    .frame_started
+                    .map_or(0.0, |t| t.elapsed().as_secs_f64() * 1e3);
+                report_frame(&out, &stats, read_ms + prep_ms + render);
+            }
         }
         Ok(())
     }
@@ -930,6 +932,7 @@ pub fn run(mut a: RenderArgs) -> Result<()> {
         several: frames.len() > 1,
         background,
         warned_range: false,
+        frame_started: None,
     };
     let started = Instant::now();
     for_each_frame(&input, &all, &frames, &recipe, !a.no_prefetch, |f| {

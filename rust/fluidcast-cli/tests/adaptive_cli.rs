@@ -510,3 +510,30 @@ fn tiles_and_memory_limits_keep_the_image() {
     let (ok, err) = try_render(&limited, &["--memory-limit", "lots"]);
     assert!(!ok && err.contains("'lots' is not a size"), "{err}");
 }
+
+/// The render line's time is the frame's wall time: never more than the whole process took
+/// (it once added the refinement passes on top of the ray cast that holds them: 1.8x the
+/// process here).
+#[test]
+fn the_render_line_says_the_wall_time() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("s.png");
+    let t = std::time::Instant::now();
+    let (code, err) = common::render_sample(&["--array", "velocity"], &[], &out);
+    let wall = t.elapsed().as_secs_f64() * 1e3;
+    assert_eq!(code, Some(0), "{err}");
+    let line = err.lines().find(|l| l.starts_with("wrote ")).unwrap();
+    let ms: f64 = line
+        .split(" in ")
+        .nth(1)
+        .unwrap()
+        .split(" ms")
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        ms <= wall && ms > 0.3 * wall,
+        "{line}: the process took {wall:.1} ms"
+    );
+}
