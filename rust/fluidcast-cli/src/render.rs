@@ -795,21 +795,16 @@ impl Job<'_> {
         if let (Some(l), None) = (&r.lod, &self.progress) {
             eprintln!("{}", l.line());
         }
-        self.write(
-            r,
-            loaded.index,
-            (loaded.read_ms, loaded.prep_ms),
-            (*time, file),
-        )?;
+        self.write(r, (loaded.read_ms, loaded.prep_ms), (*time, file))?;
         self.view = Some((scene.camera, scene.tf));
         Ok(())
     }
 
-    /// Writes frame `fi`'s image (and AOVs) and keeps its statistics.
+    /// Writes a frame's image (and AOVs), the next in the output's numbering, and keeps its
+    /// statistics.
     fn write(
         &mut self,
         r: Rendered,
-        fi: usize,
         (read_ms, prep_ms): (f64, f64),
         (time, file): (Option<f64>, &PathBuf),
     ) -> Result<()> {
@@ -819,8 +814,10 @@ impl Job<'_> {
         } = r;
         stats.stages.insert(0, ("read", read_ms));
         stats.stages.insert(1, ("particles", prep_ms));
+        // Numbered in the order written (0, 1, 2, ...) whatever --frames skips, so that
+        // ffmpeg's %04d input reads every frame; --stats names each frame's file and time.
         let out = if self.several || a.output.to_string_lossy().contains('%') {
-            frame_path(&a.output, fi)?
+            frame_path(&a.output, self.stats.len())?
         } else {
             a.output.clone()
         };

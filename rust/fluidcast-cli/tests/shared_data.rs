@@ -208,3 +208,47 @@ fn a_series_range_covers_every_frame() {
         }
     }
 }
+
+/// `--frames 0:10:3` writes frames 0, 3, 6 and 9 as out_0000 to out_0003 (ffmpeg's %04d input
+/// stops at the first gap), each the frame it stands for.
+#[test]
+fn a_stepped_series_is_numbered_without_gaps() {
+    let Some(pvd) = shared("splash_doubledambreak/DoubleDamBreak_r0.0125.pvd") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    let (out, cam) = (p("out_%04d.png"), p("cam.json"));
+    let c = cam.to_str().unwrap();
+    let options = [
+        "--array",
+        "velocity:mag",
+        "--range",
+        "0,4",
+        "--opacity-unit-distance",
+        "0.05",
+    ];
+    let stepped = ["--frames", "0:10:3", "--save-camera", c];
+    render(&pvd, &out, &[&options[..], &stepped].concat());
+    let mut written: Vec<String> = std::fs::read_dir(d.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with("out_"))
+        .collect();
+    written.sort();
+    let want = [
+        "out_0000.png",
+        "out_0001.png",
+        "out_0002.png",
+        "out_0003.png",
+    ];
+    assert_eq!(written, want);
+    // out_0002 is frame 6: the same as frames 6..7 alone under the same camera.
+    let six = ["--frames", "6:7", "--camera", c];
+    render(&pvd, &p("six_%04d.png"), &[&options[..], &six].concat());
+    let (a, b) = (
+        fluidcast_image::Image::read(&p("out_0002.png")).unwrap(),
+        fluidcast_image::Image::read(&p("six_0000.png")).unwrap(),
+    );
+    assert_eq!(common::max_diff(&a, &b), 0.0);
+}
