@@ -20,8 +20,11 @@ use crate::view::{RangeChoice, SamplingArgs, ViewArgs};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
-    /// A .vtu, .vtp, .pvtu, .pvtp, legacy .vtk file, or a .pvd series.
-    input: PathBuf,
+    /// A .vtu, .vtp, .pvtu, .pvtp, legacy .vtk file, or a series: a .pvd, several files, a
+    /// glob ('run/PartFluid_*.vtk', quoted) or a printf pattern (run/PartFluid_%04d.vtk) of
+    /// numbered files, taken in natural order (_2 before _10).
+    #[arg(required = true, num_args = 1..)]
+    input: Vec<PathBuf>,
     /// Output image: .png (8-bit over --background, colour values written as VTK and ParaView
     /// write them; see --srgb) or .exr (float RGBA premultiplied + Z).
     /// For several frames, a pattern such as out_%04d.png (the frame index).
@@ -484,7 +487,7 @@ fn select_frames(a: &RenderArgs, input: &Input, n: usize) -> Result<Vec<usize>> 
         (Some(f), _) => parse_frames(f, n)?,
         (None, Input::Series(_)) if a.output.to_string_lossy().contains('%') => (0..n).collect(),
         (None, Input::Series(_)) => {
-            eprintln!("note: {} has {} frames; rendering the first (use --frames and an out_%04d.png pattern for more)", a.input.display(), n);
+            eprintln!("note: the series has {n} frames; rendering the first (use --frames and an out_%04d.png pattern for more)");
             vec![0]
         }
         (None, Input::File(_)) => vec![0],
@@ -888,7 +891,7 @@ impl Job<'_> {
 
 pub fn run(mut a: RenderArgs) -> Result<()> {
     let background = parse_background(&a.background)?;
-    let input = Input::open(&a.input)?;
+    let input = Input::open_all(&a.input)?;
     if let Input::Series(c) = &input {
         note_shared_times(c);
     }

@@ -252,3 +252,69 @@ fn a_stepped_series_is_numbered_without_gaps() {
     );
     assert_eq!(common::max_diff(&a, &b), 0.0);
 }
+
+/// Numbered files without a `.pvd` are a series, in natural order, whether named by a glob,
+/// a printf pattern or one by one: three frames, the third `_10` (not `_2`).
+#[test]
+fn numbered_files_without_a_pvd_are_a_series() {
+    let Some(dir) = shared("splash_doubledambreak") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    for (k, src) in [(1, "0003"), (2, "0006"), (10, "0009")] {
+        let from = dir.join(format!("DoubleDamBreak_r0.0125_{src}.vtu"));
+        std::fs::copy(from, p(&format!("PartFluid_{k}.vtu"))).unwrap();
+    }
+    let cam = p("cam.json");
+    let c = cam.to_str().unwrap();
+    let fixed = [
+        "--array",
+        "velocity:mag",
+        "--range",
+        "0,4",
+        "--opacity-unit-distance",
+        "0.05",
+    ];
+    let glob = p("PartFluid_*.vtu");
+    let saved = [&fixed[..], &["--save-camera", c]].concat();
+    render(&glob, &p("g_%02d.png"), &saved);
+    let names = |prefix: &str| {
+        let mut v: Vec<String> = std::fs::read_dir(d.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+            .filter(|n| n.starts_with(prefix))
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names("g_"), ["g_00.png", "g_01.png", "g_02.png"]);
+    let with_cam = [&fixed[..], &["--camera", c]].concat();
+    render(&p("PartFluid_10.vtu"), &p("ten.png"), &with_cam);
+    let img = |n: &str| fluidcast_image::Image::read(&p(n)).unwrap();
+    assert_eq!(common::max_diff(&img("g_02.png"), &img("ten.png")), 0.0);
+    assert!(common::max_diff(&img("g_01.png"), &img("ten.png")) > 0.1);
+    // A printf pattern, and the files one by one: the same frames.
+    render(&p("PartFluid_%d.vtu"), &p("f_%02d.png"), &with_cam);
+    let one_by_one = ["PartFluid_1.vtu", "PartFluid_2.vtu", "PartFluid_10.vtu"].map(p);
+    let (o, out) = (one_by_one, p("h_%02d.png"));
+    let mut args = vec!["render"];
+    args.extend(o.iter().map(|f| f.to_str().unwrap()));
+    args.extend(["-o", out.to_str().unwrap(), "--size", "96x72"]);
+    args.extend_from_slice(&with_cam);
+    let (code, _, err) = common::run(&args);
+    assert_eq!(code, Some(0), "{err}");
+    for k in ["00", "01", "02"] {
+        let g = img(&format!("g_{k}.png"));
+        assert_eq!(
+            common::max_diff(&img(&format!("f_{k}.png")), &g),
+            0.0,
+            "{k}"
+        );
+        assert_eq!(
+            common::max_diff(&img(&format!("h_{k}.png")), &g),
+            0.0,
+            "{k}"
+        );
+    }
+}

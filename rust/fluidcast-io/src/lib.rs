@@ -34,6 +34,7 @@
 mod cells;
 mod error;
 mod legacy;
+pub mod numbered;
 mod parallel;
 mod payload;
 mod pvd;
@@ -648,6 +649,22 @@ impl Input {
                 ));
             }
             Ok(Input::File(path.to_path_buf()))
+        }
+    }
+
+    /// Opens what a command line names: one file or `.pvd` ([`Input::open`]), or several
+    /// files, a glob or a printf pattern as a series of numbered files
+    /// ([`numbered::series_of`]).
+    pub fn open_all(paths: &[PathBuf]) -> Result<Input, ReadError> {
+        match numbered::series_of(paths)? {
+            Some(c) => Ok(Input::Series(c)),
+            None => match paths {
+                [one] => Input::open(one),
+                _ => Err(ReadError::new(
+                    Path::new("(command line)"),
+                    ReadErrorKind::Format("no input file given".into()),
+                )),
+            },
         }
     }
 
