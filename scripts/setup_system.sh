@@ -5,14 +5,16 @@
 #  - Mesa's lavapipe (software Vulkan): the GPU ray caster's tests run on it without a GPU;
 #  - ParaView 5.11 with its development files and Python (its VTK 9.2 builds the VTK mapper
 #    and the plugin), cmake, Xvfb (Debian's VTK/ParaView windows need an X display), and the
-#    -dev packages ParaView's CMake config looks for.
+#    -dev packages ParaView's CMake config looks for;
+#  - ffmpeg: `fluidcast render -o run.mp4` encodes through it (and the tests count its frames
+#    with ffprobe).
 set -euo pipefail
 packages=(
   libegl1 libegl-mesa0 libgl1-mesa-dri libgl1 mesa-vulkan-drivers libvulkan1
   paraview paraview-dev python3-paraview cmake xvfb xauth openmpi-bin
   libglew-dev libopenmpi-dev libexpat1-dev libdouble-conversion-dev liblz4-dev libutfcpp-dev
   libtiff-dev libfreetype-dev libgl2ps-dev libjpeg-dev liblzma-dev libxml2-dev libpng-dev
-  libtheora-dev zlib1g-dev libeigen3-dev
+  libtheora-dev zlib1g-dev libeigen3-dev ffmpeg
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -18,6 +18,7 @@ mod bench_rbf;
 mod checked;
 mod info;
 mod lod;
+mod movie;
 mod options;
 mod probe;
 mod rbf;

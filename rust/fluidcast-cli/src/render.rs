@@ -14,6 +14,7 @@ use fluidcast_view::Camera;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde_json::json;
 
+use crate::movie;
 use crate::options::ParticleArgs;
 use crate::surface::{IsoSource, SurfaceArgs};
 use crate::view::{RangeChoice, SamplingArgs, ViewArgs};
@@ -26,8 +27,9 @@ pub struct RenderArgs {
     #[arg(required = true, num_args = 1..)]
     input: Vec<PathBuf>,
     /// Output image: .png (8-bit over --background, colour values written as VTK and ParaView
-    /// write them; see --srgb) or .exr (float RGBA premultiplied + Z).
-    /// For several frames, a pattern such as out_%04d.png (the frame index).
+    /// write them; see --srgb) or .exr (float RGBA premultiplied + Z). For several frames or
+    /// views, a pattern such as out_%04d.png (numbered 0, 1, 2, ... as written), or a movie:
+    /// .mp4, .webm, .gif, .mkv or .mov (encoded by ffmpeg at --fps).
     #[arg(short, long)]
     output: PathBuf,
     #[command(flatten)]
@@ -80,6 +82,8 @@ pub struct RenderArgs {
     /// support radius far too large, a camera inside the fluid). `off`: no limit.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_max_work)]
     max_work: Option<f64>,
+    #[command(flatten)]
+    movie: movie::MovieArgs,
 }
 
 /// Rendering a view in screen tiles, to bound memory.
@@ -707,6 +711,8 @@ struct Job<'a> {
     several: bool,
     /// `--background`, parsed once.
     background: [f32; 3],
+    /// One frame is rendered (`--orbit N` then makes N views of it).
+    single_frame: bool,
     /// Whether a frame outside the first frame's range was reported (`--range first`).
     warned_range: bool,
     /// When the frame being rendered was handed over (read and particles before it).
@@ -792,14 +798,18 @@ impl Job<'_> {
             scene.tf = scene.tf.clone().with_range(lo, hi)?;
         }
         let quiet_bar = self.progress.is_some(); // a series shows its own bar
-        let r = render_watched(&self.renderer, &mut scene, plan, quiet_bar)
-            .map_err(|e| option_error(a, e))
-            .with_context(|| format!("rendering {}", file.display()))?;
-        if let (Some(l), None) = (&r.lod, &self.progress) {
-            eprintln!("{}", l.line());
+        let base = scene.camera.clone();
+        for deg in movie::azimuths(a.movie.orbit, self.single_frame, self.stats.len()) {
+            scene.camera = movie::turned(&base, deg);
+            let r = render_watched(&self.renderer, &mut scene, plan.clone(), quiet_bar)
+                .map_err(|e| option_error(a, e))
+                .with_context(|| format!("rendering {}", file.display()))?;
+            if let (Some(l), None) = (&r.lod, &self.progress) {
+                eprintln!("{}", l.line());
+            }
+            self.write(r, (loaded.read_ms, loaded.prep_ms), (*time, file))?;
         }
-        self.write(r, (loaded.read_ms, loaded.prep_ms), (*time, file))?;
-        self.view = Some((scene.camera, scene.tf));
+        self.view = Some((base, scene.tf));
         Ok(())
     }
 
@@ -891,6 +901,16 @@ impl Job<'_> {
 
 pub fn run(mut a: RenderArgs) -> Result<()> {
     let background = parse_background(&a.background)?;
+    let movie = movie::Movie::for_output(&a.output)?;
+    if let Some(m) = &movie {
+        a.output = m.pattern();
+    }
+    if a.movie.orbit.is_some_and(|n| n > 1) && !a.output.to_string_lossy().contains('%') {
+        bail!(
+            "--orbit writes several views: the output needs a pattern such as o_%02d.png, or a \
+             movie (-o orbit.mp4)"
+        );
+    }
     let input = Input::open_all(&a.input)?;
     if let Input::Series(c) = &input {
         note_shared_times(c);
@@ -929,7 +949,8 @@ pub fn run(mut a: RenderArgs) -> Result<()> {
         view: None,
         progress: (frames.len() > 1).then(|| progress_bar(frames.len(), "frames")),
         stats: Vec::new(),
-        several: frames.len() > 1,
+        several: frames.len() > 1 || a.movie.orbit.is_some(),
+        single_frame: frames.len() == 1,
         background,
         warned_range: false,
         frame_started: None,
@@ -938,5 +959,10 @@ pub fn run(mut a: RenderArgs) -> Result<()> {
     for_each_frame(&input, &all, &frames, &recipe, !a.no_prefetch, |f| {
         job.frame(f)
     })?;
-    job.finish(frames.len(), started.elapsed().as_secs_f64())
+    let written = job.stats.len();
+    job.finish(frames.len(), started.elapsed().as_secs_f64())?;
+    match movie {
+        Some(m) => m.encode(a.movie.fps, written),
+        None => Ok(()),
+    }
 }

@@ -537,3 +537,42 @@ fn the_render_line_says_the_wall_time() {
         "{line}: the process took {wall:.1} ms"
     );
 }
+
+/// `--orbit 8` writes 8 different views of one file, turned 45° apart about the focal point
+/// (the third is `--azimuth 90`); `-o orbit.mp4` encodes them, 8 frames by ffprobe; several
+/// views need a pattern or a movie.
+#[test]
+fn an_orbit_writes_its_views_and_a_movie_holds_them() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    let opts = ["--array", "velocity", "--size", "64x48"];
+    let pattern = p("o_%02d.png");
+    let orbit = [&opts[..], &["--orbit", "8"]].concat();
+    let (code, err) = common::render_sample(&orbit, &[], &pattern);
+    assert_eq!(code, Some(0), "{err}");
+    let img = |n: &str| fluidcast_image::Image::read(&p(n)).unwrap();
+    let views: Vec<_> = (0..8).map(|k| img(&format!("o_{k:02}.png"))).collect();
+    for k in 1..8 {
+        assert!(
+            common::max_diff(&views[0], &views[k]) > 0.05,
+            "view {k} = view 0"
+        );
+    }
+    let turned = [&opts[..], &["--azimuth", "90"]].concat();
+    let (code, err) = common::render_sample(&turned, &[], &p("ninety.png"));
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(common::max_diff(&views[2], &img("ninety.png")), 0.0);
+    let movie = p("orbit.mp4");
+    let (code, err) = common::render_sample(&orbit, &["--fps", "12"], &movie);
+    assert_eq!(code, Some(0), "{err}");
+    let probe = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args(["-show_entries", "stream=nb_read_frames", "-of", "csv=p=0"])
+        .arg(&movie)
+        .output()
+        .expect("ffprobe (scripts/setup_system.sh installs ffmpeg)");
+    assert_eq!(String::from_utf8_lossy(&probe.stdout).trim(), "8");
+    let (code, err) = common::render_sample(&orbit, &[], &p("one.png"));
+    assert_ne!(code, Some(0));
+    assert!(err.contains("--orbit writes several views"), "{err}");
+}
