@@ -68,12 +68,25 @@ pub fn run(a: InfoArgs) -> Result<()> {
     }
     print_geometry(&ds, nonfinite)?;
     print_arrays(&ds)?;
-    match (ds.field_scalar("support_radius"), suggested) {
-        (Some(h), _) => out!("support radius: {h} (field data 'support_radius')"),
-        (None, Some(h)) => out!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
-        (None, None) => out!("no support radius can be suggested (no measurable spacing between neighbouring points)"),
+    match (ds.field_scalar("support_radius"), radius_array(&ds), suggested) {
+        (Some(h), _, _) => out!("support radius: {h} (field data 'support_radius')"),
+        (None, Some(name), _) => out!(
+            "per-particle smoothing length '{name}': pass --radius-array {name} --radius-scale 2 \
+             (support H = 2h)"
+        ),
+        (None, None, Some(h)) => out!("suggested support radius: {h:.6} (2 x mean nearest-neighbour spacing; pass --support-radius)"),
+        (None, None, None) => out!("no support radius can be suggested (no measurable spacing between neighbouring points)"),
     }
     Ok(())
+}
+
+/// The point array holding a smoothing length, if the data set has one.
+fn radius_array(ds: &fluidcast_io::Dataset) -> Option<&str> {
+    let names = ds
+        .point_data
+        .iter()
+        .map(|a| (a.name.as_str(), a.num_components));
+    fluidcast_sph::suggest_radius_array(names)
 }
 
 /// `fluidcast info --json`: the first frame's data set as one object.
@@ -108,7 +121,8 @@ fn info_json(
         json!({"count": ds.cells.count, "not_vertices": other, "cell_data": ds.cells.cell_arrays});
     json!({"file": ds.path, "frames": frames, "points": ds.points.len(), "nonfinite_points": nonfinite,
            "bounds": bounds, "point_data": arrays, "field_data": fields, "cells": cells,
-           "suggested_support_radius": suggested})
+           "suggested_support_radius": suggested,
+           "suggested_radius_array": radius_array(ds).map(|n| json!({"name": n, "radius_scale": 2}))})
 }
 
 /// The file, its kind, points, cells and bounds, a line each.

@@ -40,7 +40,8 @@ pub struct RenderArgs {
     sampling: SamplingArgs,
     #[command(flatten)]
     surface: SurfaceArgs,
-    /// Background colour (RGB, 0..1) for PNG output.
+    /// Background colour for PNG output: r,g,b (0..1), #rrggbb, or white, black, grey,
+    /// paraview.
     #[arg(long, default_value = "1,1,1")]
     background: String,
     /// Encode PNG output with the sRGB transfer curve, treating colours as linear light. By
@@ -350,7 +351,33 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
 
 /// `--background r,g,b`: three finite numbers in 0..1.
 fn parse_background(s: &str) -> Result<[f32; 3]> {
-    let bad = || anyhow::anyhow!("--background '{s}': expected r,g,b, three numbers in 0..1");
+    let bad = || {
+        anyhow::anyhow!(
+            "--background '{s}': expected r,g,b (three numbers in 0..1), #rrggbb, or white, \
+             black, grey, paraview (ParaView's blue-grey)"
+        )
+    };
+    let named = match s.trim().to_ascii_lowercase().as_str() {
+        "white" => Some([1.0, 1.0, 1.0]),
+        "black" => Some([0.0, 0.0, 0.0]),
+        "grey" | "gray" => Some([0.5, 0.5, 0.5]),
+        "paraview" => Some([0.32, 0.34, 0.43]),
+        _ => None,
+    };
+    if let Some(c) = named {
+        return Ok(c);
+    }
+    if let Some(hex) = s.trim().strip_prefix('#') {
+        let byte = |k: usize| {
+            hex.get(2 * k..2 * k + 2)
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .map(|b| f32::from(b) / 255.0)
+        };
+        return match (hex.len(), byte(0), byte(1), byte(2)) {
+            (6, Some(r), Some(g), Some(b)) => Ok([r, g, b]),
+            _ => Err(bad()),
+        };
+    }
     let v = s
         .split(',')
         .map(|x| x.trim().parse::<f32>().map_err(|_| bad()))

@@ -35,15 +35,16 @@ pub struct ViewArgs {
     /// Image size in pixels, WxH.
     #[arg(long, default_value = "800x600")]
     size: String,
-    /// Transfer function: a built-in preset (Cool to Warm, Viridis, Inferno, Grayscale) or a
-    /// ParaView colour-map preset .json file.
-    #[arg(long, default_value = "Viridis")]
+    /// Transfer function (alias --cmap): a built-in preset, in any case (Viridis, Plasma,
+    /// Inferno, Magma, Cividis, Turbo, Jet, Cool to Warm, Grayscale, X Ray), or a ParaView
+    /// colour-map preset .json file.
+    #[arg(long, alias = "cmap", default_value = "Viridis")]
     tf: String,
-    /// Data range mapped onto the colour map: lo,hi; or, from the data, `all` (a series: every
-    /// rendered frame's values, read before the first frame renders; the default), `first`
-    /// (the first frame's, kept for the series) or `frame` (each frame its own). One file:
-    /// its own values.
-    #[arg(long, allow_hyphen_values = true)]
+    /// Data range mapped onto the colour map (alias --clim): lo,hi; or, from the data, `all`
+    /// (a series: every rendered frame's values, read before the first frame renders; the
+    /// default), `first` (the first frame's, kept for the series) or `frame` (each frame its
+    /// own). One file: its own values.
+    #[arg(long, alias = "clim", allow_hyphen_values = true)]
     range: Option<String>,
     /// Distance (world units) over which the transfer function's opacity applies, as
     /// ParaView's Scalar Opacity Unit Distance. Default: bounds diagonal / cbrt(particles).

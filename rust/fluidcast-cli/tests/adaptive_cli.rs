@@ -576,3 +576,46 @@ fn an_orbit_writes_its_views_and_a_movie_holds_them() {
     assert_ne!(code, Some(0));
     assert!(err.contains("--orbit writes several views"), "{err}");
 }
+
+/// The names users type elsewhere render as fluidcast's own: `--cmap plasma` is `--tf
+/// Plasma` (and not Viridis), `--clim` is `--range`, `--background white` and `#000000` are
+/// the numbers, `velocity:Magnitude` and `velocity:X` are `:mag` and `:0`.
+#[test]
+fn colour_maps_and_names_users_know() {
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    let img = |args: &[&str], name: &str| {
+        let size = ["--size", "48x36"];
+        let (code, err) = common::render_sample(&[&size[..], args].concat(), &[], &p(name));
+        assert_eq!(code, Some(0), "{args:?}: {err}");
+        fluidcast_image::Image::read(&p(name)).unwrap()
+    };
+    let same = |a: &[&str], b: &[&str]| {
+        let (x, y) = (img(a, "a.png"), img(b, "b.png"));
+        assert_eq!(common::max_diff(&x, &y), 0.0, "{a:?} vs {b:?}");
+    };
+    let v = ["--array", "velocity"];
+    same(
+        &[&v[..], &["--cmap", "plasma"]].concat(),
+        &[&v[..], &["--tf", "Plasma"]].concat(),
+    );
+    let plasma = img(&[&v[..], &["--cmap", "plasma"]].concat(), "p.png");
+    assert!(
+        common::max_diff(&plasma, &img(&v, "v.png")) > 0.1,
+        "plasma is not viridis"
+    );
+    same(
+        &[&v[..], &["--clim", "0,2"]].concat(),
+        &[&v[..], &["--range", "0,2"]].concat(),
+    );
+    same(&[&v[..], &["--background", "white"]].concat(), &v);
+    same(
+        &[&v[..], &["--background", "#000000"]].concat(),
+        &[&v[..], &["--background", "0,0,0"]].concat(),
+    );
+    same(
+        &["--array", "velocity:Magnitude"],
+        &["--array", "velocity:mag"],
+    );
+    same(&["--array", "velocity:X"], &["--array", "velocity:0"]);
+}

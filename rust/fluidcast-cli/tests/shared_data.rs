@@ -318,3 +318,25 @@ fn numbered_files_without_a_pvd_are_a_series() {
         );
     }
 }
+
+/// `info` on PySPH's frame (per-particle `h`, no `support_radius`) suggests the radius array,
+/// not a spacing-based radius; on SPlisHSPlasH's it reports the field data.
+#[test]
+fn info_suggests_the_radius_array_a_file_has() {
+    let Some(pysph) = shared("pysph_dambreak3d/dam_break_3d_fluid_01180.vtu") else {
+        return;
+    };
+    let (code, out, err) = common::run(&["info", pysph.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.contains("--radius-array h --radius-scale 2"), "{out}");
+    assert!(!out.contains("suggested support radius"), "{out}");
+    let (_, json, _) = common::run(&["info", pysph.to_str().unwrap(), "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(v["suggested_radius_array"]["name"], "h");
+    let splash = shared("splash_doubledambreak/DoubleDamBreak_r0.0125_0011.vtu").unwrap();
+    let (_, out, _) = common::run(&["info", splash.to_str().unwrap()]);
+    assert!(
+        out.contains("support radius: 0.05") && !out.contains("--radius-array"),
+        "{out}"
+    );
+}

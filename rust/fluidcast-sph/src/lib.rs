@@ -14,6 +14,7 @@ pub use field::{FieldKind, FieldSample};
 pub use grid::{Distinct, NeighbourGrid};
 pub use kernel::Kernel;
 pub use particles::{
-    suggest_support_radius, Component, ParticleError, ParticleSource, ParticleSpec, Particles,
-    Quantity, RadiusSource, VolumeSource, DENSITY_NAMES, MASS_NAMES, VOLUME_NAMES,
+    suggest_radius_array, suggest_support_radius, Component, ParticleError, ParticleSource,
+    ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource, DENSITY_NAMES, MASS_NAMES,
+    SMOOTHING_LENGTH_NAMES, VOLUME_NAMES,
 };

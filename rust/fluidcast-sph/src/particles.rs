@@ -21,7 +21,8 @@ pub enum Component {
 }
 
 /// The rendered quantity: a point array and a component selection, written `NAME`,
-/// `NAME:mag` or `NAME:K`.
+/// `NAME:mag` or `NAME:K`, or with ParaView's names `NAME:Magnitude` and `NAME:X|Y|Z`
+/// (components 0, 1, 2; any case).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Quantity {
     /// The point array.
@@ -42,7 +43,8 @@ impl std::str::FromStr for Quantity {
                     component: Component::Magnitude,
                 });
             }
-            if let Ok(k) = sel.parse::<usize>() {
+            let axis = ["x", "y", "z"].iter().position(|a| *a == sel_l);
+            if let Some(k) = axis.or_else(|| sel.parse::<usize>().ok()) {
                 return Ok(Quantity {
                     array: name.into(),
                     component: Component::Index(k),
@@ -461,6 +463,24 @@ fn spacing_without(points: &[[f64; 3]], far: &[usize]) -> Option<f64> {
         cell *= 2.0;
     }
     None
+}
+
+/// The names SPH codes give a per-particle smoothing length h (PySPH `h`, `smoothing_length`,
+/// GADGET's `hsml`, SWIFT's `SmoothingLengths`), compared without case.
+pub const SMOOTHING_LENGTH_NAMES: [&str; 4] = ["h", "smoothing_length", "hsml", "smoothinglengths"];
+
+/// A point array among `names` that holds a smoothing length h (one component): what to
+/// pass as `--radius-array NAME --radius-scale 2` (support H = 2h, as PySPH's and VTK's
+/// cubic spline and Wendland kernels take it).
+pub fn suggest_radius_array<'a>(
+    names: impl IntoIterator<Item = (&'a str, usize)>,
+) -> Option<&'a str> {
+    names.into_iter().find_map(|(name, components)| {
+        let known = SMOOTHING_LENGTH_NAMES
+            .iter()
+            .any(|n| n.eq_ignore_ascii_case(name));
+        (known && components == 1).then_some(name)
+    })
 }
 
 /// Suggested support radius H when neither the user nor the file gives one: twice the mean
@@ -924,6 +944,33 @@ impl Particles {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_smoothing_length_array_is_suggested_by_name_and_shape() {
+        assert_eq!(suggest_radius_array([("rho", 1), ("h", 1)]), Some("h"));
+        assert_eq!(
+            suggest_radius_array([("SmoothingLengths", 1)]),
+            Some("SmoothingLengths")
+        );
+        assert_eq!(suggest_radius_array([("h", 3), ("mass", 1)]), None);
+        assert_eq!(suggest_radius_array([("height", 1)]), None);
+    }
+
+    #[test]
+    fn quantities_take_the_cli_and_paraview_component_names() {
+        let q = |s: &str| s.parse::<Quantity>().unwrap();
+        let c = |s: &str| q(s).component;
+        assert_eq!(c("v:mag"), Component::Magnitude);
+        assert_eq!(c("v:Magnitude"), Component::Magnitude);
+        assert_eq!(c("v:2"), Component::Index(2));
+        assert_eq!(
+            [c("v:X"), c("v:y"), c("v:Z")],
+            [0, 1, 2].map(Component::Index)
+        );
+        assert_eq!(c("v"), Component::Auto);
+        assert_eq!(q("a:b:Y").array, "a:b");
+        assert_eq!(q("v:w").array, "v:w"); // not a selector: part of the name
+    }
+
     use super::*;
 
     fn lattice(n: usize) -> Vec<[f64; 3]> {

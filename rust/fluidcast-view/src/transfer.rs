@@ -1,6 +1,6 @@
 use serde_json::Value;
 
-use crate::presets_data::{INFERNO, VIRIDIS};
+use crate::presets_data::{CIVIDIS, INFERNO, JET, MAGMA, PLASMA, TURBO, VIRIDIS};
 
 /// A colour + opacity transfer function, as ParaView's colour-map editor defines one.
 ///
@@ -46,7 +46,18 @@ pub enum TransferFunctionError {
     BadRange(f64, f64),
 }
 
-const BUILTIN: [&str; 4] = ["Cool to Warm", "Viridis", "Inferno", "Grayscale"];
+const BUILTIN: [&str; 10] = [
+    "Cool to Warm",
+    "Viridis",
+    "Inferno",
+    "Grayscale",
+    "Plasma",
+    "Magma",
+    "Cividis",
+    "Turbo",
+    "Jet",
+    "X Ray",
+];
 
 fn table(flat: &[f64]) -> Vec<(f64, [f64; 3])> {
     flat.chunks_exact(4)
@@ -103,7 +114,15 @@ impl TransferFunction {
             ]),
             "viridis" => table(&VIRIDIS),
             "inferno" => table(&INFERNO),
-            "grayscale" | "greyscale" | "gray" => table(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]),
+            "grayscale" | "greyscale" | "gray" | "grey" => {
+                table(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0])
+            }
+            "plasma" => table(&PLASMA),
+            "magma" => table(&MAGMA),
+            "cividis" => table(&CIVIDIS),
+            "turbo" => table(&TURBO),
+            "jet" => table(&JET),
+            "x ray" | "xray" => table(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]),
             _ => {
                 return Err(TransferFunctionError::UnknownPreset(
                     name.into(),
