@@ -9,6 +9,7 @@ use fluidcast_view::Camera;
 
 /// Camera motion and movie encoding.
 #[derive(clap::Args, Clone, Debug)]
+#[command(next_help_heading = "Output, series and movies")]
 pub struct MovieArgs {
     /// N views around the focal point (turned about view up, 360/N degrees apart, as
     /// vtkCamera::Azimuth): N images of one file, or, over a series, a turn of 360/N degrees

@@ -4,6 +4,7 @@ use anyhow::Result;
 use fluidcast_sph::{FieldKind, Kernel, ParticleSpec, Quantity, RadiusSource, VolumeSource};
 
 #[derive(clap::Args, Debug, Clone)]
+#[command(next_help_heading = "Particles")]
 pub struct ParticleArgs {
     /// Point array to render: NAME, NAME:mag (vector magnitude) or NAME:K (component K).
     /// Without it, the density field of the particles is rendered.

@@ -26,6 +26,7 @@ pub enum NoiseArg {
 
 /// Options of `--field rbf`.
 #[derive(clap::Args, Debug, Clone)]
+#[command(next_help_heading = "RBF volumes and shadows")]
 pub struct RbfArgs {
     /// --field rbf: the radius (world units) of every particle at radius-map factor 1, where
     /// its truncated Gaussian ends (3 standard deviations). Default: each particle's support

@@ -30,7 +30,7 @@ pub struct RenderArgs {
     /// write them; see --srgb) or .exr (float RGBA premultiplied + Z). For several frames or
     /// views, a pattern such as out_%04d.png (numbered 0, 1, 2, ... as written), or a movie:
     /// .mp4, .webm, .gif, .mkv or .mov (encoded by ffmpeg at --fps).
-    #[arg(short, long)]
+    #[arg(help_heading = "Output, series and movies", short, long)]
     output: PathBuf,
     #[command(flatten)]
     particles: ParticleArgs,
@@ -42,28 +42,32 @@ pub struct RenderArgs {
     surface: SurfaceArgs,
     /// Background colour for PNG output: r,g,b (0..1), #rrggbb, or white, black, grey,
     /// paraview.
-    #[arg(long, default_value = "1,1,1")]
+    #[arg(
+        help_heading = "Output, series and movies",
+        long,
+        default_value = "1,1,1"
+    )]
     background: String,
     /// Encode PNG output with the sRGB transfer curve, treating colours as linear light. By
     /// default colours are written as they are, like a VTK/ParaView screenshot.
-    #[arg(long)]
+    #[arg(help_heading = "Output, series and movies", long)]
     srgb: bool,
     /// Frames of a .pvd series, START:END (end exclusive), START:END:STEP or one index.
-    #[arg(long)]
+    #[arg(help_heading = "Output, series and movies", long)]
     frames: Option<String>,
     /// Write timings and counts as JSON here (for a series: one object per frame in a list).
-    #[arg(long)]
+    #[arg(help_heading = "Output, series and movies", long)]
     stats: Option<PathBuf>,
     /// For a series: read each frame only after the previous one is written. By default the
     /// next frame is read and turned into particles on a second thread while the current one
     /// renders (two frames in memory at once).
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     no_prefetch: bool,
     /// With PNG output and an error tolerance, also write NAME.plan.png (per bundle: grey =
     /// cells at full rate, green = adapted in depth, yellow = super-pixels, as in the paper's
     /// Fig. 3) and NAME.error.png (predicted error bound / E_I, white = E_I or more). EXR
     /// output always carries these as channels error_bound, level and superpixel.
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     aovs: bool,
     #[command(flatten)]
     split: SplitArgs,
@@ -75,13 +79,13 @@ pub struct RenderArgs {
     /// most this many pixels at its depth (0: every particle). It pays where particles are
     /// about a pixel or smaller; `fluidcast bench --lod` reports its speed and error against
     /// full detail.
-    #[arg(long, allow_hyphen_values = true, value_parser = crate::checked::real("--lod"))]
+    #[arg(help_heading = "Large data", long, allow_hyphen_values = true, value_parser = crate::checked::real("--lod"))]
     lod: Option<f64>,
     /// The most kernel evaluations a frame may be estimated to take before it runs (each
     /// particle's footprint in pixels times the depth samples through it; default 5e10,
     /// about 10 s on 2 cores): above it the render is refused with what the view needs (a
     /// support radius far too large, a camera inside the fluid). `off`: no limit.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_max_work)]
+    #[arg(help_heading = "Large data", long, allow_hyphen_values = true, value_parser = parse_max_work)]
     max_work: Option<f64>,
     #[command(flatten)]
     movie: movie::MovieArgs,
@@ -89,6 +93,7 @@ pub struct RenderArgs {
 
 /// Rendering a view in screen tiles, to bound memory.
 #[derive(clap::Args, Clone, Debug, Default)]
+#[command(next_help_heading = "Large data")]
 pub struct SplitArgs {
     /// The most memory the process may hold while a view renders (bytes, or with a K, M, G
     /// or T suffix, powers of 1024): the view is rendered in as many screen tiles as that

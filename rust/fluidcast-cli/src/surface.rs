@@ -8,6 +8,7 @@ use fluidcast_sph::{ParticleSource, Particles, Quantity};
 use fluidcast_view::{Light, Lighting};
 
 #[derive(clap::Args, Debug, Clone)]
+#[command(next_help_heading = "Surfaces")]
 pub struct SurfaceArgs {
     /// Draw iso-surfaces at these values of --iso-field (comma-separated), e.g. `--iso 0.5`
     /// for the free surface. Found exactly along each ray on the CPU by the reference ray

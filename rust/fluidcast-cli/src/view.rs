@@ -11,6 +11,7 @@ use fluidcast_view::{Camera, TransferFunction};
 use crate::options::ParticleArgs;
 
 #[derive(clap::Args, Debug, Clone)]
+#[command(next_help_heading = "Camera, colour and opacity")]
 pub struct ViewArgs {
     /// Camera JSON file (vtkCamera fields: position, focal_point, view_up, view_angle,
     /// parallel_projection, parallel_scale) or `auto` (vtkRenderer::ResetCamera on the data,
@@ -55,7 +56,7 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 1.0)]
     opacity_scale: f64,
     /// Depth samples per pixel footprint (1 = the depth step equals the pixel footprint).
-    #[arg(long, default_value_t = 1.0, value_parser = crate::checked::real("--sampling-scale"))]
+    #[arg(help_heading = "Quality and backend", long, default_value_t = 1.0, value_parser = crate::checked::real("--sampling-scale"))]
     sampling_scale: f64,
 }
 
@@ -73,9 +74,11 @@ pub enum Mode {
 }
 
 #[derive(clap::Args, Debug, Clone)]
+#[command(next_help_heading = "Quality and backend")]
 pub struct SamplingArgs {
-    /// Renderer: adaptive, or reference (the default with --iso, which the adaptive renderer
-    /// does not draw yet).
+    /// Renderer: adaptive (the default), reference (the default with --iso: surfaces exact
+    /// along each ray, composited in depth order with the volume) or perspective-grid. With
+    /// --mode adaptive, --iso draws the volume in front of the surfaces.
     #[arg(long, value_enum)]
     pub mode: Option<Mode>,
     /// Where the adaptive renderer runs: auto (a hardware GPU if there is one, else the CPU
@@ -89,34 +92,36 @@ pub struct SamplingArgs {
     pub adapter: Option<String>,
     /// Screen-space error tolerance E_I: the largest change, per colour or alpha channel
     /// (0..1; 0.004 ≈ 1 level of 255), that adaptive sampling may make against full-rate
-    /// sampling of the same grid, or `off` for full rate everywhere.
+    /// sampling of the same grid, or `off` (or 0, as ParaView writes it) for full rate everywhere.
     #[arg(long, default_value = "0.004")]
     pub error_tolerance: String,
     /// Relaxation E_relax in [0, 1] (1: ignore the lateral variation inside cells when
     /// estimating errors; 0: strict bound).
     #[arg(long, default_value_t = 1.0, conflicts_with = "strict",
           value_parser = crate::checked::real("--relax"))]
+    #[arg(help_heading = "Expert: the sampling plan")]
     pub relax: f64,
     /// Never render cells as super-pixels.
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_superpixels: bool,
     /// Cast every pixel: no image-space interpolation between every second pixel in the
     /// relaxed mode.
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_interpolation: bool,
     /// Analyse every bundle: no probe of an eighth of them first, which plans the rest at
     /// full rate where adapting would not pay.
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_probe: bool,
     /// Do not force cells with surface particles to full rate.
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_surface_cells: bool,
     /// Ray bundle size D_xy in pixels (1..=64).
-    #[arg(long, default_value_t = 8, value_parser = crate::checked::whole::<u32>("--bundle"))]
+    #[arg(help_heading = "Expert: the sampling plan", long, default_value_t = 8, value_parser = crate::checked::whole::<u32>("--bundle"))]
     pub bundle: u32,
     /// Depth samples per cell D_z (a power of two, 1..=64).
     #[arg(long, default_value_t = 16,
           value_parser = crate::checked::whole::<u32>("--depth-samples"))]
+    #[arg(help_heading = "Expert: the sampling plan")]
     pub depth_samples: u32,
     /// Strict error bound: no relaxation and no super-pixels, so no pixel differs from the
     /// full-rate rendering by more than E_I.
@@ -124,11 +129,11 @@ pub struct SamplingArgs {
     pub strict: bool,
     /// --mode perspective-grid: pixels per grid column along each side (1 = a column per
     /// pixel, the reference's samples; 2 casts a quarter of the columns and interpolates).
-    #[arg(long, default_value_t = 1, value_parser = crate::checked::whole::<u32>("--grid-cell"))]
+    #[arg(help_heading = "Expert: the sampling plan", long, default_value_t = 1, value_parser = crate::checked::whole::<u32>("--grid-cell"))]
     pub grid_cell: u32,
     /// --mode perspective-grid: resample every tile of columns in every slab, also behind
     /// pixels that have stopped (the same image, slower: for measuring occlusion culling).
-    #[arg(long)]
+    #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_occlusion_culling: bool,
 }
 

@@ -619,3 +619,45 @@ fn colour_maps_and_names_users_know() {
     );
     same(&["--array", "velocity:X"], &["--array", "velocity:0"]);
 }
+
+/// `render --help` is grouped under headings users look for, and the sampling plan's expert
+/// switches sit under their own heading, not beside everyday options.
+#[test]
+fn render_help_is_grouped_with_expert_switches_apart() {
+    let (ok, out, _) = run(&["render", "--help"]);
+    assert!(ok);
+    let headings = [
+        "Output, series and movies:",
+        "Particles:",
+        "Camera, colour and opacity:",
+        "Quality and backend:",
+        "Expert: the sampling plan:",
+        "Surfaces:",
+        "Large data:",
+        "RBF volumes and shadows:",
+    ];
+    let at: Vec<usize> = headings
+        .iter()
+        .map(|h| {
+            out.find(&format!("\n{h}\n"))
+                .unwrap_or_else(|| panic!("{h} missing"))
+        })
+        .collect();
+    assert!(at.windows(2).all(|w| w[0] < w[1]), "headings out of order");
+    let (expert, next) = (at[4], at[5]);
+    for flag in ["--bundle", "--relax", "--no-probe", "--depth-samples"] {
+        let k = out
+            .find(&format!("\n      {flag}"))
+            .unwrap_or_else(|| panic!("{flag}"));
+        assert!(
+            expert < k && k < next,
+            "{flag} is not under the expert heading"
+        );
+    }
+    for flag in ["--array", "--camera", "--orbit", "--error-tolerance"] {
+        let k = out
+            .find(&format!("\n      {flag}"))
+            .unwrap_or_else(|| panic!("{flag}"));
+        assert!(k < expert || k > next, "{flag} is under the expert heading");
+    }
+}
