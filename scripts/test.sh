@@ -38,6 +38,9 @@ FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh
 ctest --test-dir build --output-on-failure --output-junit reports/ctest.xml
+# The README's and docs' shell blocks marked runnable, on the shipped data (the release CLI
+# that setup_vtk.sh built).
+.venv/bin/python scripts/run_doc_blocks.py
 # The package `fluidcast` (mapper + pyvista helper) in a pyvista Plotter, on ParaView's VTK.
 bash scripts/setup_pyvista.sh
 tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista \
