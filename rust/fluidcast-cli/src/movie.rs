@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use anyhow::{bail, Context, Result};
-use fluidcast_view::Camera;
+use fluidcast_view::{Camera, CameraPath};
 
 /// Camera motion and movie encoding.
 #[derive(clap::Args, Clone, Debug)]
@@ -16,6 +16,15 @@ pub struct MovieArgs {
     /// from each frame to the next.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100000))]
     pub orbit: Option<u32>,
+    /// A camera path (JSON): keyframes {"time": T, "camera": {vtkCamera fields}} or
+    /// {"time": T, "pvcc": "view.pvcc"} (ParaView's saved camera), interpolated smoothly.
+    /// Over a series each frame takes the camera at its time (a .pvd's time step; a
+    /// numbered series' index); one file is rendered --path-frames times along the path.
+    #[arg(long, conflicts_with = "orbit")]
+    pub camera_path: Option<PathBuf>,
+    /// Images along a camera path when one file is rendered.
+    #[arg(long, default_value = "48", value_parser = clap::value_parser!(u32).range(1..=100000))]
+    pub path_frames: u32,
     /// Frames per second of a movie output (-o run.mp4, .webm, .gif, .mkv, .mov).
     #[arg(long, default_value = "24", value_parser = parse_fps)]
     pub fps: f64,
@@ -28,6 +37,56 @@ fn parse_fps(s: &str) -> Result<f64, String> {
         _ => Err(format!(
             "{s}: frames per second, a number from 0.01 to 1000"
         )),
+    }
+}
+
+impl MovieArgs {
+    /// The camera path `--camera-path` names, its `.pvcc` keyframes read beside it.
+    pub fn path(&self) -> Result<Option<CameraPath>> {
+        let Some(file) = &self.camera_path else {
+            return Ok(None);
+        };
+        let text = fluidcast_mem::read_text(file)
+            .with_context(|| format!("reading camera path {}", file.display()))?;
+        let dir = file.parent().unwrap_or(Path::new("."));
+        let read = |name: &str| {
+            fluidcast_mem::read_text(&dir.join(name)).map_err(|e| format!("{name}: {e}"))
+        };
+        let path =
+            CameraPath::from_json(&text, read).with_context(|| file.display().to_string())?;
+        Ok(Some(path))
+    }
+
+    /// The cameras of one loaded frame: along `path` (its `--path-frames` views of a single
+    /// frame, or the camera at the frame's `time`), else `--orbit`'s turns of `base`.
+    pub fn views(
+        &self,
+        path: Option<&CameraPath>,
+        base: &Camera,
+        single_frame: bool,
+        (position, time): (usize, Option<f64>),
+    ) -> Vec<Camera> {
+        match path {
+            Some(p) if single_frame => {
+                let (a, b) = p.span();
+                let n = self.path_frames.max(1);
+                (0..n)
+                    .map(|k| {
+                        let s = if n > 1 {
+                            f64::from(k) / f64::from(n - 1)
+                        } else {
+                            0.0
+                        };
+                        p.at(a + s * (b - a))
+                    })
+                    .collect()
+            }
+            Some(p) => vec![p.at(time.unwrap_or(position as f64))],
+            None => azimuths(self.orbit, single_frame, position)
+                .into_iter()
+                .map(|deg| turned(base, deg))
+                .collect(),
+        }
     }
 }
 

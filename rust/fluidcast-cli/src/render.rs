@@ -745,6 +745,8 @@ struct Job<'a> {
     background: [f32; 3],
     /// One frame is rendered (`--orbit N` then makes N views of it).
     single_frame: bool,
+    /// `--camera-path`, read.
+    path: Option<fluidcast_view::CameraPath>,
     /// Whether a frame outside the first frame's range was reported (`--range first`).
     warned_range: bool,
     /// When the frame being rendered was handed over (read and particles before it).
@@ -831,8 +833,12 @@ impl Job<'_> {
         }
         let quiet_bar = self.progress.is_some(); // a series shows its own bar
         let base = scene.camera.clone();
-        for deg in movie::azimuths(a.movie.orbit, self.single_frame, self.stats.len()) {
-            scene.camera = movie::turned(&base, deg);
+        let at = (self.stats.len(), *time);
+        for camera in a
+            .movie
+            .views(self.path.as_ref(), &base, self.single_frame, at)
+        {
+            scene.camera = camera;
             let r = render_watched(&self.renderer, &mut scene, plan.clone(), quiet_bar)
                 .map_err(|e| option_error(a, e))
                 .with_context(|| format!("rendering {}", file.display()))?;
@@ -937,10 +943,12 @@ pub fn run(mut a: RenderArgs) -> Result<()> {
     if let Some(m) = &movie {
         a.output = m.pattern();
     }
-    if a.movie.orbit.is_some_and(|n| n > 1) && !a.output.to_string_lossy().contains('%') {
+    let path = a.movie.path()?;
+    let views = a.movie.orbit.is_some_and(|n| n > 1) || path.is_some();
+    if views && !a.output.to_string_lossy().contains('%') {
         bail!(
-            "--orbit writes several views: the output needs a pattern such as o_%02d.png, or a \
-             movie (-o orbit.mp4)"
+            "--orbit and --camera-path write several views: the output needs a pattern such \
+             as o_%02d.png, or a movie (-o orbit.mp4)"
         );
     }
     let input = Input::open_all(&a.input)?;
@@ -981,8 +989,9 @@ pub fn run(mut a: RenderArgs) -> Result<()> {
         view: None,
         progress: (frames.len() > 1).then(|| progress_bar(frames.len(), "frames")),
         stats: Vec::new(),
-        several: frames.len() > 1 || a.movie.orbit.is_some(),
+        several: frames.len() > 1 || views,
         single_frame: frames.len() == 1,
+        path,
         background,
         warned_range: false,
         frame_started: None,

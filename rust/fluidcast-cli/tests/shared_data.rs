@@ -340,3 +340,65 @@ fn info_suggests_the_radius_array_a_file_has() {
         "{out}"
     );
 }
+
+/// A camera path over a series: each frame takes the camera at its time, the keyframes'
+/// exactly (one given as ParaView's saved camera state, .pvcc), a blend between them; one
+/// file is rendered --path-frames times along the path, from the first keyframe's view.
+#[test]
+fn a_camera_path_moves_the_view_through_its_keyframes() {
+    let Some(pvd) = shared("splash_doubledambreak/DoubleDamBreak_r0.0125.pvd") else {
+        return;
+    };
+    let d = tempfile::tempdir().unwrap();
+    let p = |n: &str| d.path().join(n);
+    let pvcc = r#"<PVCameraConfiguration version="1.0"><Proxy group="views" type="RenderView">
+<Property name="CameraPosition"><Element index="0" value="0.8"/><Element index="1" value="1.5"/><Element index="2" value="3.5"/></Property>
+<Property name="CameraFocalPoint"><Element index="0" value="0"/><Element index="1" value="0.3"/><Element index="2" value="0"/></Property>
+<Property name="CameraViewUp"><Element index="0" value="0"/><Element index="1" value="1"/><Element index="2" value="0"/></Property>
+<Property name="CameraViewAngle"><Element index="0" value="30"/></Property>
+</Proxy></PVCameraConfiguration>"#;
+    std::fs::write(p("start.pvcc"), pvcc).unwrap();
+    let end = r#"{"position": [3.5, 1.0, 0.5], "focal_point": [0, 0.3, 0], "view_up": [0, 1, 0], "view_angle": 30}"#;
+    let start = r#"{"position": [0.8, 1.5, 3.5], "focal_point": [0, 0.3, 0], "view_up": [0, 1, 0], "view_angle": 30}"#;
+    std::fs::write(p("end.json"), end).unwrap();
+    std::fs::write(p("start.json"), start).unwrap();
+    let path = format!(
+        r#"{{"keyframes": [{{"time": 0.001, "pvcc": "start.pvcc"}}, {{"time": 0.101, "camera": {end}}}]}}"#
+    );
+    std::fs::write(p("path.json"), path).unwrap();
+    let fixed = [
+        "--array",
+        "velocity:mag",
+        "--range",
+        "0,4",
+        "--opacity-unit-distance",
+        "0.05",
+    ];
+    let cp = p("path.json");
+    let along = ["--frames", "0:3", "--camera-path", cp.to_str().unwrap()];
+    render(&pvd, &p("s_%02d.png"), &[&fixed[..], &along].concat());
+    let img = |n: &str| fluidcast_image::Image::read(&p(n)).unwrap();
+    let files = fluidcast_io::read_collection(&pvd).unwrap();
+    let files: Vec<PathBuf> = files.steps().map(|s| s[0].file.clone()).collect();
+    for (k, cam) in [(0, "start.json"), (2, "end.json")] {
+        let c = p(cam);
+        let alone = format!("alone_{k}.png");
+        render(
+            &files[k],
+            &p(&alone),
+            &[&fixed[..], &["--camera", c.to_str().unwrap()]].concat(),
+        );
+        assert_eq!(
+            common::max_diff(&img(&format!("s_{k:02}.png")), &img(&alone)),
+            0.0,
+            "frame {k}"
+        );
+    }
+    let (mid, a, b) = (img("s_01.png"), img("alone_0.png"), img("alone_2.png"));
+    assert!(common::max_diff(&mid, &a) > 0.1 && common::max_diff(&mid, &b) > 0.1);
+    // One file along the path: 5 images, the first from the first keyframe's view.
+    let one = ["--camera-path", cp.to_str().unwrap(), "--path-frames", "5"];
+    render(&files[0], &p("one_%02d.png"), &[&fixed[..], &one].concat());
+    assert!(p("one_04.png").exists() && !p("one_05.png").exists());
+    assert_eq!(common::max_diff(&img("one_00.png"), &a), 0.0);
+}
