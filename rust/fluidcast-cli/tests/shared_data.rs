@@ -100,6 +100,17 @@ fn double_dam_break_encodings_give_identical_images() {
     }
 }
 
+/// The names of the files in `dir` that start with `prefix`, sorted.
+fn names_starting(dir: &Path, prefix: &str) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| n.starts_with(prefix))
+        .collect();
+    v.sort();
+    v
+}
+
 /// Distinct colours among the drawn (not white) pixels of a PNG.
 fn colours(png: &Path) -> usize {
     let img = fluidcast_image::Image::read(png).unwrap();
@@ -230,12 +241,7 @@ fn a_stepped_series_is_numbered_without_gaps() {
     ];
     let stepped = ["--frames", "0:10:3", "--save-camera", c];
     render(&pvd, &out, &[&options[..], &stepped].concat());
-    let mut written: Vec<String> = std::fs::read_dir(d.path())
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
-        .filter(|n| n.starts_with("out_"))
-        .collect();
-    written.sort();
+    let written = names_starting(d.path(), "out_");
     let want = [
         "out_0000.png",
         "out_0001.png",
@@ -279,15 +285,7 @@ fn numbered_files_without_a_pvd_are_a_series() {
     let glob = p("PartFluid_*.vtu");
     let saved = [&fixed[..], &["--save-camera", c]].concat();
     render(&glob, &p("g_%02d.png"), &saved);
-    let names = |prefix: &str| {
-        let mut v: Vec<String> = std::fs::read_dir(d.path())
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
-            .filter(|n| n.starts_with(prefix))
-            .collect();
-        v.sort();
-        v
-    };
+    let names = |prefix: &str| names_starting(d.path(), prefix);
     assert_eq!(names("g_"), ["g_00.png", "g_01.png", "g_02.png"]);
     let with_cam = [&fixed[..], &["--camera", c]].concat();
     render(&p("PartFluid_10.vtu"), &p("ten.png"), &with_cam);
