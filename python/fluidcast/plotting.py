@@ -91,17 +91,12 @@ def read(path: str | Path) -> pv.PolyData:
 
 def _checked(argument: str, prop: str, value) -> float:
     """``value`` for the argument ``argument`` (the mapper's property ``prop``), as a float,
-    checked by fluidcast's one table of settings (the mapper's ``CheckSetting``, as the CLI
+    checked by fluidcast's one table of settings (:func:`fluidcast.api._checked`, as the CLI
     and ParaView check it); a ``ValueError`` naming the argument otherwise."""
     try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"fluidcast.add_particles: {argument} must be a number, "
-                         f"not {value!r}") from None
-    why = _core.check_setting(prop, v)
-    if why:
-        raise ValueError(f"fluidcast.add_particles: {argument}: {why}")
-    return v
+        return api._checked(argument, prop, value)
+    except ValueError as e:
+        raise ValueError(f"fluidcast.add_particles: {e}") from None
 
 
 def _point_set(particles) -> pv.DataSet:
