@@ -53,6 +53,27 @@ struct vtkFluidCastVolumeMapper::Internals
   };
   /** The last frame, and the last one before it that cast another number of rays. */
   Frame Last, Before;
+  /** The colour range and input last warned of as a single value (once each). */
+  std::string WarnedRange;
+
+  /** A warning (once per colour range and input) when the colour map's range is one value
+   * that hides these particles: a series' first step at rest, in ParaView. Empty otherwise. */
+  std::string RangeWarning(const double range[2], vtkDataSet* input)
+  {
+    std::string w(this->Renderer->colour_range_warning());
+    if (w.empty())
+    {
+      return w;
+    }
+    std::ostringstream key;
+    key << range[0] << ' ' << range[1] << ' ' << input << ' ' << input->GetMTime();
+    if (key.str() == this->WarnedRange)
+    {
+      return {};
+    }
+    this->WarnedRange = key.str();
+    return w;
+  }
 
   void Record(double rays, double seconds)
   {
@@ -154,6 +175,19 @@ fluidcast::CameraDesc Describe(vtkCamera* cam)
   return cd;
 }
 
+/** The range of the volume property's colour function (grey or RGB, as it has). */
+void ColourRange(vtkVolumeProperty* prop, double range[2])
+{
+  if (prop->GetColorChannels(0) == 1)
+  {
+    prop->GetGrayTransferFunction(0)->GetRange(range);
+  }
+  else
+  {
+    prop->GetRGBTransferFunction(0)->GetRange(range);
+  }
+}
+
 /** The volume property's colour and opacity tables over the colour function's range, as
  * VTK's own volume mappers sample them, and its opacity unit distance. */
 void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
@@ -161,10 +195,10 @@ void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
   const int n = 1024;
   std::vector<double> rgb(3 * n), opacity(n);
   double range[2] = { 0, 1 };
+  ColourRange(prop, range);
   if (prop->GetColorChannels(0) == 1)
   {
     vtkPiecewiseFunction* gray = prop->GetGrayTransferFunction(0);
-    gray->GetRange(range);
     std::vector<double> g(n);
     gray->GetTable(range[0], range[1], n, g.data());
     for (int i = 0; i < n; ++i)
@@ -175,7 +209,6 @@ void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
   else
   {
     vtkColorTransferFunction* ctf = prop->GetRGBTransferFunction(0);
-    ctf->GetRange(range);
     ctf->GetTable(range[0], range[1], n, rgb.data());
   }
   prop->GetScalarOpacity(0)->GetTable(range[0], range[1], n, opacity.data());
@@ -283,13 +316,16 @@ vtkFluidCastVolumeMapper::vtkFluidCastVolumeMapper()
 vtkFluidCastVolumeMapper::~vtkFluidCastVolumeMapper()
 {
   this->SetRadiusArray(nullptr);
-  this->SetKernel(nullptr);
   this->SetAdapter(nullptr);
-  this->SetField(nullptr);
-  this->SetRBFClassification(nullptr);
   this->SetIsoSurfaceField(nullptr);
-  this->SetMode(nullptr);
-  this->SetRBFNoise(nullptr);
+  // Freed as vtkSetStringMacro would, not through the checked setters (which refuse "" with
+  // an error: every deleted representation printed one).
+  for (char** name :
+    { &this->Kernel, &this->Field, &this->RBFClassification, &this->Mode, &this->RBFNoise })
+  {
+    delete[] * name;
+    *name = nullptr;
+  }
 }
 
 //------------------------------------------------------------------------------
@@ -897,6 +933,13 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     }
     this->LastSamples = static_cast<vtkIdType>(info.samples);
     this->LastTiles = static_cast<vtkIdType>(info.tiles);
+    double range[2] = { 0, 1 };
+    ColourRange(vol->GetProperty(), range);
+    const std::string warning = this->Impl->RangeWarning(range, this->GetDataSetInput());
+    if (!warning.empty())
+    {
+      vtkWarningMacro(<< (this->ArrayName ? this->ArrayName : "scalars") << ": " << warning);
+    }
     std::string device(info.device);
     if (device != this->LastDevice)
     {

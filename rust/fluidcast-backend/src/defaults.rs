@@ -64,6 +64,36 @@ pub fn data_range(particles: &Particles, kernel: Kernel, field: FieldKind) -> (f
     }
 }
 
+/// Why a colour map over `colour` misleads for a frame whose attribute spans `values`, when
+/// that range is one value in all but name: within 1 % of its magnitude (or below 1e-30), as a colour map set
+/// from a frame where the array is constant is (ParaView widens such a range by a few float
+/// steps, so the constant sits at the map's first entry). `None` for a range of real width
+/// (what a user chose is theirs) or values it holds.
+pub fn single_value_range(values: (f64, f64), colour: (f64, f64)) -> Option<String> {
+    let ((lo, hi), (a, b)) = (values, colour);
+    let span = b - a;
+    // ParaView's widening of 0 is to a denormal float: below any physical width.
+    if !(span <= 0.01 * a.abs().max(b.abs()) || span < 1e-30) {
+        return None;
+    }
+    let what = if lo < a - span || hi > b + span {
+        format!("this frame's values [{lo:.6}, {hi:.6}] saturate at its ends")
+    } else if lo == hi {
+        format!(
+            "the array is constant ({lo:.6}): every particle takes the map's first entry, \
+             transparent where its opacity is 0"
+        )
+    } else {
+        return None;
+    };
+    Some(format!(
+        "the colour map's range [{a:.6}, {b:.6}] is a single value (set from a frame where \
+         the array is constant, such as a series' first step at rest): {what}; give it the \
+         range over every time step (ParaView: \"Rescale to data range over all timesteps\" \
+         in the colour map editor, or RescaleTransferFunctionToDataRangeOverTime() in Python)"
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -157,5 +187,30 @@ mod tests {
             .fold(0.0, f64::max);
         assert_eq!((lo, hi), (0.0, most));
         assert!(most > 0.5 && most < 1.5, "{most}");
+    }
+
+    #[test]
+    fn only_a_single_value_range_that_misleads_is_reported() {
+        // ParaView's widening of 0.00981: a few float steps.
+        let one = (0.00981, 0.00981 * (1.0 + 65536.0 * f64::from(f32::EPSILON)));
+        let out = single_value_range((0.0098, 2.0), one).unwrap();
+        assert!(
+            out.contains("saturate") && out.contains("over all timesteps"),
+            "{out}"
+        );
+        let pinned = single_value_range((0.00981, 0.00981), one).unwrap();
+        assert!(pinned.contains("constant"), "{pinned}");
+        let zero = single_value_range((0.0, 0.0), (0.0, 0.0)).unwrap();
+        assert!(zero.contains("constant"), "{zero}");
+        // ParaView's widening of [0, 0]: 65536 float steps above 0, a denormal.
+        let denormal = f64::from(f32::from_bits(65536));
+        assert!(single_value_range((0.0, 0.0), (0.0, denormal)).is_some());
+        assert!(single_value_range((0.0, 1.5), (0.0, denormal)).is_some());
+        // Values it holds, though not one value: nothing to say.
+        assert_eq!(single_value_range((0.00981, 0.00982), one), None);
+        // A range of real width, however narrow the user chose it: theirs.
+        assert_eq!(single_value_range((0.0, 2.0), (0.5, 0.6)), None);
+        assert_eq!(single_value_range((990.0, 1010.0), (995.0, 1006.0)), None);
+        assert_eq!(single_value_range((0.0, 1.0), (f64::NAN, f64::NAN)), None);
     }
 }

@@ -316,6 +316,9 @@ mod ffi {
         fn set_surfaces(self: &mut Renderer, surfaces: &SurfaceSettings) -> Result<()>;
         /// Builds the particles now (normally done by `render`) and reports them.
         fn prepare(self: &mut Renderer) -> Result<RenderInfo>;
+        /// Empty, or a warning for a colour map whose range is a single value that hides
+        /// the particles held (a series' first step at rest; the text says what to do).
+        fn colour_range_warning(self: &Renderer) -> String;
         /// The smallest and largest view depth of any particle's support for the camera set
         /// (`[zmin, zmax]`, empty without particles in front of it): what MPI ranks reduce
         /// over all of them and pass to `set_part` as `support_depths`.
@@ -780,6 +783,22 @@ impl Renderer {
         guarded("prepare", || self.prepared().map(|p| p.info.clone()))
     }
 
+    /// [`fluidcast_backend::defaults::single_value_range`] for the prepared particles'
+    /// attribute and the transfer function's range; empty when it says nothing, before both
+    /// are set, or for a field that sums the particles (its values are not the attribute's).
+    pub fn colour_range_warning(&self) -> String {
+        let (Some(p), Some(tf), Some(s)) = (&self.prepared, &self.tf, &self.settings) else {
+            return String::new();
+        };
+        if !(plan::is_rbf(&s.field)
+            || plan::parse_field(&s.field) == Ok(fluidcast_sph::FieldKind::Csph))
+        {
+            return String::new();
+        }
+        let values = (p.info.value_min, p.info.value_max);
+        fluidcast_backend::defaults::single_value_range(values, tf.range).unwrap_or_default()
+    }
+
     fn set_part(&mut self, crop: &[f64], support_depths: &[f64]) -> Result<(), String> {
         guarded("set_part", || {
             let crop = match crop {
@@ -1206,6 +1225,30 @@ mod tests {
         let mut depth = vec![0f32; 40 * 30];
         r.render(40, 30, &[], &mut rgba, &mut depth)
             .map(|info| (rgba, depth, info))
+    }
+
+    /// A colour map whose range is one value (ParaView's at a series' first step at rest)
+    /// is reported for the attribute it misrepresents, and not for a field that sums the
+    /// particles (its values are not the attribute's) or a range of real width.
+    #[test]
+    fn a_single_value_colour_range_is_reported_for_the_attribute() {
+        let (mut r, mut s, _) = big_cube(|i| (i % 7) as f32);
+        let rgb = [0.0, 0.0, 1.0, 1.0, 0.0, 0.0];
+        assert_eq!(r.colour_range_warning(), "", "nothing prepared yet");
+        r.prepare().unwrap();
+        r.set_transfer_function(0.0, 6.0, &rgb, &[0.2, 0.8], 0.1)
+            .unwrap();
+        assert_eq!(r.colour_range_warning(), "");
+        r.set_transfer_function(3.0, 3.000001, &rgb, &[0.2, 0.8], 0.1)
+            .unwrap();
+        let w = r.colour_range_warning();
+        assert!(w.contains("[0.000000, 6.000000] saturate"), "{w}");
+        for (field, said) in [("rbf", true), ("density", false), ("sph", false)] {
+            s.field = field.into();
+            r.configure(&s).unwrap();
+            r.prepare().unwrap();
+            assert_eq!(!r.colour_range_warning().is_empty(), said, "{field}");
+        }
     }
 
     /// Particles built from a caller's source (`prepare_source`, what the Python module

@@ -133,7 +133,7 @@ pub(crate) fn check_field(s: &str) -> Result<(), String> {
     Ok(())
 }
 
-fn parse_field(s: &str) -> Result<FieldKind, String> {
+pub(crate) fn parse_field(s: &str) -> Result<FieldKind, String> {
     let s = s.trim().to_ascii_lowercase();
     FieldKind::ALL
         .into_iter()
