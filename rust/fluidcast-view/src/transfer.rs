@@ -1,6 +1,9 @@
 use serde_json::Value;
 
-use crate::presets_data::{CIVIDIS, INFERNO, JET, MAGMA, PLASMA, TURBO, VIRIDIS};
+use crate::presets_data::{
+    BLUE_TO_RED_RAINBOW, CIVIDIS, HOT, INFERNO, JET, MAGMA, PLASMA, RAINBOW, RDBU, SEISMIC,
+    SPECTRAL, TURBO, TWILIGHT, VIRIDIS,
+};
 
 /// A colour + opacity transfer function, as ParaView's colour-map editor defines one.
 ///
@@ -31,7 +34,11 @@ pub struct TransferFunction {
 #[derive(Debug, thiserror::Error)]
 pub enum TransferFunctionError {
     /// A preset name that is neither built in nor a file (the name, the built-in ones).
-    #[error("unknown transfer function preset '{0}' (built in: {1}; or give a ParaView preset .json file)")]
+    #[error(
+        "unknown transfer function preset '{0}' (built in: {1}, any of them reversed with _r; \
+         or give a ParaView preset .json file: ParaView's other presets, such as Rainbow \
+         Uniform or Black-Body Radiation, are exported from its Choose Preset dialog)"
+    )]
     UnknownPreset(String, String),
     /// A preset file that cannot be used.
     #[error("{file}: {problem}")]
@@ -46,7 +53,7 @@ pub enum TransferFunctionError {
     BadRange(f64, f64),
 }
 
-const BUILTIN: [&str; 10] = [
+const BUILTIN: [&str; 17] = [
     "Cool to Warm",
     "Viridis",
     "Inferno",
@@ -57,6 +64,13 @@ const BUILTIN: [&str; 10] = [
     "Turbo",
     "Jet",
     "X Ray",
+    "Blue to Red Rainbow",
+    "Hot",
+    "Rainbow",
+    "Twilight",
+    "RdBu",
+    "Spectral",
+    "Seismic",
 ];
 
 fn table(flat: &[f64]) -> Vec<(f64, [f64; 3])> {
@@ -102,41 +116,68 @@ fn lerp_in<T: Copy>(
     mix(a.1, b.1, f)
 }
 
+/// The colour table of the built-in preset `key` (lower case, spaces), if it is one.
+fn preset_colours(key: &str) -> Option<Vec<(f64, [f64; 3])>> {
+    let flat: &[f64] = match key {
+        "cool to warm" | "coolwarm" => &[
+            0.0, 0.231373, 0.298039, 0.752941, 0.5, 0.865003, 0.865003, 0.865003, 1.0, 0.705882,
+            0.0156863, 0.14902,
+        ],
+        "viridis" => &VIRIDIS,
+        "inferno" => &INFERNO,
+        "grayscale" | "greyscale" | "gray" | "grey" => &[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0],
+        "plasma" => &PLASMA,
+        "magma" => &MAGMA,
+        "cividis" => &CIVIDIS,
+        "turbo" => &TURBO,
+        "jet" => &JET,
+        "x ray" | "xray" => &[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0],
+        "blue to red rainbow" => &BLUE_TO_RED_RAINBOW,
+        "hot" => &HOT,
+        "rainbow" => &RAINBOW,
+        "twilight" => &TWILIGHT,
+        "rdbu" => &RDBU,
+        "spectral" => &SPECTRAL,
+        "seismic" => &SEISMIC,
+        _ => return None,
+    };
+    Some(table(flat))
+}
+
 impl TransferFunction {
-    /// A built-in preset (case-insensitive; `-`/`_` match spaces) with ParaView's default
-    /// linear opacity ramp 0 → 1.
+    /// A built-in preset (case-insensitive; `-`/`_` match spaces; ParaView's names such as
+    /// "Viridis (matplotlib)" and matplotlib's such as "viridis" or "RdBu_r", `_r` reversing
+    /// it) with ParaView's default linear opacity ramp 0 → 1.
     pub fn preset(name: &str) -> Result<TransferFunction, TransferFunctionError> {
-        let key = name.to_ascii_lowercase().replace(['-', '_'], " ");
-        let colors = match key.as_str() {
-            "cool to warm" | "coolwarm" => table(&[
-                0.0, 0.231373, 0.298039, 0.752941, 0.5, 0.865003, 0.865003, 0.865003, 1.0,
-                0.705882, 0.0156863, 0.14902,
-            ]),
-            "viridis" => table(&VIRIDIS),
-            "inferno" => table(&INFERNO),
-            "grayscale" | "greyscale" | "gray" | "grey" => {
-                table(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0])
-            }
-            "plasma" => table(&PLASMA),
-            "magma" => table(&MAGMA),
-            "cividis" => table(&CIVIDIS),
-            "turbo" => table(&TURBO),
-            "jet" => table(&JET),
-            "x ray" | "xray" => table(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]),
-            _ => {
-                return Err(TransferFunctionError::UnknownPreset(
-                    name.into(),
-                    BUILTIN.join(", "),
-                ))
-            }
+        let key = name.trim().to_ascii_lowercase().replace(['-', '_'], " ");
+        let key = key.strip_suffix(" (matplotlib)").unwrap_or(&key);
+        let (key, reversed) = match key.strip_suffix(" r") {
+            Some(k) if preset_colours(k).is_some() => (k, true),
+            _ => (key, false),
         };
+        let Some(mut colors) = preset_colours(key) else {
+            return Err(TransferFunctionError::UnknownPreset(
+                name.into(),
+                BUILTIN.join(", "),
+            ));
+        };
+        if reversed {
+            colors = colors
+                .into_iter()
+                .rev()
+                .map(|(x, c)| (1.0 - x, c))
+                .collect();
+        }
         let canonical = BUILTIN
             .iter()
             .find(|b| b.to_ascii_lowercase() == key)
-            .copied()
-            .unwrap_or(name);
+            .map_or_else(|| name.to_string(), |b| b.to_string());
         Ok(TransferFunction {
-            name: canonical.into(),
+            name: if reversed {
+                format!("{canonical}_r")
+            } else {
+                canonical
+            },
             colors,
             opacity: vec![(0.0, 0.0), (1.0, 1.0)],
             range: (0.0, 1.0),
@@ -435,6 +476,41 @@ mod tests {
             .unwrap();
         assert!((g.eval(0.5).0[1] - 0.25).abs() < 1e-12);
         assert!(TransferFunction::preset("nope").is_err());
+    }
+
+    /// The names users type elsewhere: ParaView's ("Viridis (matplotlib)", "Blue to Red
+    /// Rainbow") and matplotlib's ("viridis", "RdBu_r" reversed), in any case.
+    #[test]
+    fn preset_names_from_paraview_and_matplotlib() {
+        let colour = |name: &str, x: f64| TransferFunction::preset(name).unwrap().eval(x).0;
+        assert_eq!(colour("Viridis (matplotlib)", 0.3), colour("viridis", 0.3));
+        assert_eq!(colour("PLASMA", 0.7), colour("Plasma", 0.7));
+        assert_eq!(TransferFunction::preset("rdbu").unwrap().name, "RdBu");
+        // _r reverses: the colour at x is the original's at 1 - x.
+        let r = TransferFunction::preset("RdBu_r").unwrap();
+        assert_eq!(r.name, "RdBu_r");
+        for x in [0.0, 0.2, 0.55, 1.0] {
+            let (a, b) = (r.eval(x).0, colour("RdBu", 1.0 - x));
+            assert!(
+                (0..3).all(|k| (a[k] - b[k]).abs() < 1e-12),
+                "{x}: {a:?} {b:?}"
+            );
+        }
+        // ParaView's Blue to Red Rainbow: the hue sweep, blue at 0, green at 1/2, red at 1.
+        for (x, want) in [
+            (0.0, [0.0, 0.0, 1.0]),
+            (0.5, [0.0, 1.0, 0.0]),
+            (1.0, [1.0, 0.0, 0.0]),
+        ] {
+            let c = colour("blue to red rainbow", x);
+            assert!((0..3).all(|k| (c[k] - want[k]).abs() < 1e-6), "{x}: {c:?}");
+        }
+        // Built in or not, every name errs the same way when unknown, with the way out.
+        let e = TransferFunction::preset("Black-Body Radiation")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("Choose Preset") && e.contains("RdBu"), "{e}");
+        assert!(TransferFunction::preset("viridis_r_r").is_err());
     }
 
     #[test]
