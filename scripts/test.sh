@@ -38,9 +38,6 @@ FLUIDCAST_REQUIRE_GPU=1 cargo test --workspace
 # The VTK mapper in real VTK windows and the ParaView plugin in pvbatch (under Xvfb).
 bash scripts/setup_vtk.sh
 ctest --test-dir build --output-on-failure --output-junit reports/ctest.xml
-# The README's and docs' shell blocks marked runnable, on the shipped data (the release CLI
-# that setup_vtk.sh built).
-.venv/bin/python scripts/run_doc_blocks.py
 # The package `fluidcast` (mapper + pyvista helper) in a pyvista Plotter, on ParaView's VTK.
 bash scripts/setup_pyvista.sh
 tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/pyvista \
@@ -53,6 +50,11 @@ tests/vtk/with_xvfb.sh .venv-pip/bin/python -m pytest -q tests/module \
   --junitxml=build/reports/pytest-module-pip.xml
 tests/vtk/with_xvfb.sh .venv-paraview/bin/python -m pytest -q tests/module \
   --junitxml=build/reports/pytest-module-paraview.xml
+# The README's and docs' blocks marked runnable, on the shipped data: shell (the release CLI
+# that setup_vtk.sh built), Python with pyvista (the pip-installed package) and pvbatch (the
+# plugin).
+tests/vtk/with_xvfb.sh .venv/bin/python scripts/run_doc_blocks.py --python .venv-pip/bin/python \
+  --pvbatch pvbatch
 # A skipped test, or a ctest test that CMake did not register (a program not found), fails the
 # test command instead of passing quietly (skips are only listed with FLUIDCAST_REQUIRE_DATA=0).
 skips=()
