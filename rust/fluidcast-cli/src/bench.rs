@@ -63,6 +63,11 @@ pub struct BenchArgs {
     /// Write the results as JSON here.
     #[arg(long)]
     pub(crate) json: Option<PathBuf>,
+    /// Also measure the machine's kernel-evaluation limit (a plain, vectorised f32 loop of
+    /// cubic-spline evaluations on every core) and print each row's time as a multiple of the
+    /// time its views' full-rate work takes at that limit.
+    #[arg(long)]
+    pub(crate) limit: bool,
 }
 
 /// What every bench starts from: the render parameters and transfer function the options
@@ -204,6 +209,8 @@ struct Measured {
     particles: usize,
     surface_ms: Vec<f64>,
     frames: Vec<usize>,
+    /// With `--limit`: each view's full-rate work (kernel evaluations, estimated).
+    work: Vec<f64>,
 }
 
 /// The plan of one bench render: `base` at tolerance `tol`, in `mode`.
@@ -248,7 +255,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let gpu = backend.gpu().is_some().then_some(&backend);
     let setup = Setup::new(&a)?;
     let m = measure(&a, &setup, tolerances(&a)?, gpu)?;
-    let rows = report_cpu(&a, &setup.base, &m)?;
+    let mut rows = report_cpu(&a, &setup.base, &m)?;
+    let limit = a.limit.then(|| report_limit(&m, &mut rows)).transpose()?;
     let gpu_rows = match backend.gpu() {
         Some(g) => report_gpu(&g.adapter, &m)?,
         None => Vec::new(),
@@ -259,6 +267,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                        "views": a.views, "frames": m.frames, "bundle": base.grid.bundle, "depth_samples": base.grid.depth_samples,
                        "relax": base.adaptive.relax, "superpixels": base.adaptive.superpixels,
                        "surface_cells": base.adaptive.surface_cells, "surface_flags_ms_per_frame": median(&mut m.surface_ms.clone()), "rows": rows,
+                       "limit": limit.map(|l| json!({"evaluations_per_s_per_core": l.per_core, "evaluations_per_s": l.all_cores, "threads": l.threads})),
                        "gpu": backend.gpu().map(|g| json!({"adapter": g.adapter, "memory_bytes": m.gpu_memory, "rows": gpu_rows}))});
         std::fs::write(p, serde_json::to_string_pretty(&v)?)
             .with_context(|| format!("writing {}", p.display()))?;
@@ -291,6 +300,7 @@ fn measure(
         particles: 0,
         surface_ms: Vec::new(),
         frames: s.frames.clone(),
+        work: Vec::new(),
     };
     let mut first = None;
     for &fi in &s.frames {
@@ -330,6 +340,10 @@ fn measure_view(
     pb: &indicatif::ProgressBar,
 ) -> Result<()> {
     let cpu = Renderer::cpu();
+    if a.limit {
+        let work = fluidcast_backend::work::estimate(scene.particles(), &scene.camera, &s.base)?;
+        m.work.push(work);
+    }
     let cell = a.sampling.grid_cell;
     let baselines = [
         (!a.no_reference, Mode::Reference),
@@ -375,6 +389,34 @@ fn measure_view(
         pb.inc(1);
     }
     Ok(())
+}
+
+/// `--limit`: measures the machine's kernel-evaluation limit, prints it and, per tolerance,
+/// the median total time over the time the median view's full-rate work takes at the limit
+/// (also into each row's JSON as `times_limit`).
+fn report_limit(m: &Measured, rows: &mut [serde_json::Value]) -> Result<crate::bench_limit::Limit> {
+    let l = crate::bench_limit::measure();
+    let work = median(&mut m.work.clone());
+    let at_limit_ms = 1e3 * work / l.all_cores;
+    out!(
+        "kernel-evaluation limit: {:.2} G evaluations/s per core, {:.2} G/s on {} threads; \
+         a view's full-rate work {:.3} G evaluations (median) takes {at_limit_ms:.1} ms there",
+        l.per_core * 1e-9,
+        l.all_cores * 1e-9,
+        l.threads,
+        work * 1e-9
+    );
+    for (runs, tol) in m.runs.iter().zip(&m.tols) {
+        let ratio = runs.median("total") / at_limit_ms;
+        let name = tol.map_or("off".to_string(), |e| e.to_string());
+        out!("  E_I {name}: {ratio:.2}x the limit");
+        let adaptive = |r: &serde_json::Value| r["mode"] == "adaptive";
+        let same = |r: &serde_json::Value| r["error_tolerance"] == json!(tol);
+        if let Some(row) = rows.iter_mut().find(|r| adaptive(r) && same(r)) {
+            row["times_limit"] = json!(ratio);
+        }
+    }
+    Ok(l)
 }
 
 /// Prints the CPU table (the baselines, then each tolerance) and returns its JSON rows.

@@ -13,6 +13,7 @@ macro_rules! out {
 }
 
 mod bench;
+mod bench_limit;
 mod bench_lod;
 mod bench_rbf;
 mod checked;
