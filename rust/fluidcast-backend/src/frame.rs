@@ -80,6 +80,19 @@ impl Renderer {
         }
         let (mode, note) = plan.mode_for(self.requested);
         notes.extend(note.map(str::to_string));
+        let full_rate;
+        let plan = match skip_adaptivity(scene, plan, mode)? {
+            Some(why) => {
+                notes.push(why);
+                full_rate = {
+                    let mut p = plan.clone();
+                    p.params.adaptive.tolerance = None;
+                    p
+                };
+                &full_rate
+            }
+            None => plan,
+        };
         let flags = mode == Mode::Adaptive && plan.params.adaptive.uses_surface_cells();
         let t_prep = std::time::Instant::now();
         let lod = prepare(scene, plan, flags, &mut notes)?;
@@ -206,6 +219,32 @@ impl Renderer {
             .ok_or_else(|| BackendError::Plan("the density range is the RBF field's".into()))?;
         march::density_range(scene, &plan.params, m)
     }
+}
+
+/// Why the adaptive plan of `plan` is skipped for full rate on this view, if it is: its own
+/// work would cost more than the whole full-rate cast ([`crate::work::adaptivity_can_pay`]).
+/// Not with level of detail (its particles are known only after the cut), nor without the
+/// probe (`--no-probe`: analyse every bundle, whatever it costs).
+fn skip_adaptivity(
+    scene: &Scene,
+    plan: &RenderPlan,
+    mode: Mode,
+) -> Result<Option<String>, BackendError> {
+    let a = &plan.params.adaptive;
+    if mode != Mode::Adaptive || a.tolerance.is_none() || !a.probe || plan.lod.is_some() {
+        return Ok(None);
+    }
+    let particles = scene.particles();
+    let work = crate::work::estimate(particles, &scene.camera, &plan.params)?;
+    let known = scene.surface_flags().is_some();
+    if crate::work::adaptivity_can_pay(work, particles.len(), known) {
+        return Ok(None);
+    }
+    Ok(Some(format!(
+        "adaptive sampling skipped for this view: its full-rate cast is about {:.0} kernel \
+         evaluations a particle, less than the plan's own work; rendered at full rate",
+        work / particles.len().max(1) as f64
+    )))
 }
 
 /// Makes what the render of `plan` needs of `scene`: the level-of-detail cut (with a note

@@ -51,6 +51,30 @@ pub fn estimate(
         .sum())
 }
 
+/// What adaptive sampling's own work costs per particle, in kernel evaluations of the full-rate
+/// cast (measured on 2 cores, 2026-12-04, docs/performance.md: the cast 0.7–1.2 ns per
+/// estimated evaluation; the plan's analysis about 0.07 µs per particle beyond full rate's; the
+/// surface flags 0.24–0.27 µs per particle, once per particle set). Taken at the cast's fastest
+/// evaluation so that adaptivity is skipped only where it cannot pay.
+pub const ANALYSIS_EVALUATIONS_PER_PARTICLE: f64 = 60.0;
+/// See [`ANALYSIS_EVALUATIONS_PER_PARTICLE`]: the surface flags, when not yet computed.
+pub const FLAGS_EVALUATIONS_PER_PARTICLE: f64 = 210.0;
+
+/// Whether adaptive sampling can pay for its own work on a view whose full-rate cast takes
+/// `work` kernel evaluations ([`estimate`]) for `particles` particles: only if the whole cast
+/// costs more than the analysis (and the surface flags, unless `flags_known`). Below, even a
+/// plan that skipped every sample would lose to full rate (a million particles a few pixels
+/// wide: 11 evaluations a particle at 320 × 240).
+pub fn adaptivity_can_pay(work: f64, particles: usize, flags_known: bool) -> bool {
+    let per_particle = ANALYSIS_EVALUATIONS_PER_PARTICLE
+        + if flags_known {
+            0.0
+        } else {
+            FLAGS_EVALUATIONS_PER_PARTICLE
+        };
+    work >= per_particle * particles as f64
+}
+
 /// Refuses a frame whose [`estimate`] exceeds `limit`, saying how much it needs and what
 /// usually causes it.
 pub fn check(
@@ -137,5 +161,22 @@ mod tests {
         let e = check(&p, &cam, &params, 1e5).unwrap_err().to_string();
         assert!(e.contains("needs about 7.9e5 kernel evaluations"), "{e}");
         assert!(check(&p, &cam, &params, 1e7).is_ok());
+    }
+
+    /// The break-even: the cast's work per particle against the plan's own (and the surface
+    /// flags' while they are not computed).
+    #[test]
+    fn adaptivity_pays_only_above_its_own_work() {
+        let n = 1000;
+        let own = ANALYSIS_EVALUATIONS_PER_PARTICLE * n as f64;
+        let with_flags = own + FLAGS_EVALUATIONS_PER_PARTICLE * n as f64;
+        assert!(adaptivity_can_pay(own, n, true));
+        assert!(!adaptivity_can_pay(own - 1.0, n, true));
+        assert!(!adaptivity_can_pay(with_flags - 1.0, n, false));
+        assert!(adaptivity_can_pay(with_flags, n, false));
+        assert!(
+            adaptivity_can_pay(0.0, 0, false),
+            "no particles: nothing to lose"
+        );
     }
 }

@@ -217,3 +217,39 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
         Err(e) => panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}"),
     }
 }
+
+/// Adaptive sampling is skipped where its own work would cost more than the whole full-rate
+/// cast (here the cloud seen from 40 times further: its particles a pixel or two wide): the
+/// render says so and is the full-rate image; with the probe off (`--no-probe`) the plan runs
+/// anyway; near, where the particles are wide, it runs as before.
+#[test]
+fn adaptivity_is_skipped_where_it_cannot_pay() {
+    let (p, tf, cam, prm) = scene();
+    let r = Renderer::cpu();
+    let skipped = |x: &fluidcast_backend::Rendered| {
+        x.notes
+            .iter()
+            .any(|n| n.contains("adaptive sampling skipped"))
+    };
+    let far = Camera {
+        position: cam.position.map(|c| 40.0 * c),
+        ..cam.clone()
+    };
+    let mut full = prm.clone();
+    full.adaptive.tolerance = None;
+    let a = draw(&r, &p, &far, &tf, &prm).unwrap();
+    assert!(skipped(&a), "{:?}", a.notes);
+    let b = draw(&r, &p, &far, &tf, &full).unwrap();
+    assert!(!skipped(&b));
+    assert_eq!(a.image.rgba, b.image.rgba);
+    assert!(
+        a.image.rgba.iter().any(|px| px[3] > 0.0),
+        "the far cloud is drawn"
+    );
+    let mut no_probe = prm.clone();
+    no_probe.adaptive.probe = false;
+    let c = draw(&r, &p, &far, &tf, &no_probe).unwrap();
+    assert!(!skipped(&c));
+    let near = draw(&r, &p, &cam, &tf, &prm).unwrap();
+    assert!(!skipped(&near), "{:?}", near.notes);
+}

@@ -59,12 +59,14 @@ fn modes_agree_within_their_promises() {
     let p = |n: &str| d.path().join(n);
     render(&p("ref.exr"), &["--mode", "reference"]);
     render(&p("off.exr"), &["--error-tolerance", "off"]);
+    // --no-probe: the adaptive plan runs on this small view, which it would skip by default
+    // (its analysis would cost more than the whole full-rate cast).
     render(
         &p("strict.exr"),
-        &["--error-tolerance", "0.004", "--strict"],
+        &["--error-tolerance", "0.004", "--strict", "--no-probe"],
     );
-    render(&p("default.png"), &["--aovs"]);
-    render(&p("default.exr"), &[]);
+    render(&p("default.png"), &["--aovs", "--no-probe"]);
+    render(&p("default.exr"), &["--no-probe"]);
     // The EXRs keep depth: the reference and full rate put it on the same sample plane; the
     // colours agree to single-precision rounding (full rate sums in f32).
     let (colour, depth) = compare(&p("ref.exr"), &p("off.exr"));
@@ -178,9 +180,10 @@ fn gpu_backend_from_the_command_line() {
     ]);
     assert!(!ok && err.contains("adaptive mode only"), "{err}");
     let cpu = dir.join("cpu.exr");
-    render(&cpu, &["--backend", "cpu"]);
+    // --no-probe: the adaptive plan on both, which this small view would skip by default.
+    render(&cpu, &["--backend", "cpu", "--no-probe"]);
     let gpu = dir.join("gpu.exr");
-    let (ok, err) = try_render(&gpu, &["--backend", "gpu"]);
+    let (ok, err) = try_render(&gpu, &["--backend", "gpu", "--no-probe"]);
     if !ok
         && err.contains("no GPU adapter")
         && std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1")
