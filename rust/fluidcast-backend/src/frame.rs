@@ -81,7 +81,8 @@ impl Renderer {
         let (mode, note) = plan.mode_for(self.requested);
         notes.extend(note.map(str::to_string));
         let full_rate;
-        let plan = match skip_adaptivity(scene, plan, mode)? {
+        let (skip, known_work) = skip_adaptivity(scene, plan, mode)?;
+        let plan = match skip {
             Some(why) => {
                 notes.push(why);
                 full_rate = {
@@ -106,7 +107,12 @@ impl Renderer {
             None => (scene.particles(), scene.surface_flags()),
         };
         let limit = plan.work_limit.unwrap_or(crate::work::DEFAULT_WORK_LIMIT);
-        crate::work::check(particles, &scene.camera, &plan.params, limit)?;
+        // skip_adaptivity estimated the work of these particles (no level of detail) already.
+        let work = match known_work {
+            Some(w) => w,
+            None => crate::work::estimate(particles, &scene.camera, &plan.params)?,
+        };
+        crate::work::refuse_above(work, particles, limit)?;
         let tiles = tile_particles(particles.len(), plan.size(), &plan.tiles)?;
         let surface = surface.filter(|_| flags);
         let (image, mut stats) =
@@ -222,29 +228,31 @@ impl Renderer {
 }
 
 /// Why the adaptive plan of `plan` is skipped for full rate on this view, if it is: its own
-/// work would cost more than the whole full-rate cast ([`crate::work::adaptivity_can_pay`]).
-/// Not with level of detail (its particles are known only after the cut), nor without the
-/// probe (`--no-probe`: analyse every bundle, whatever it costs).
+/// work would cost more than the whole full-rate cast ([`crate::work::adaptivity_can_pay`]);
+/// and that cast's [`crate::work::estimate`] when it was made. Not with level of detail (its
+/// particles are known only after the cut), nor without the probe (`--no-probe`: analyse
+/// every bundle, whatever it costs).
 fn skip_adaptivity(
     scene: &Scene,
     plan: &RenderPlan,
     mode: Mode,
-) -> Result<Option<String>, BackendError> {
+) -> Result<(Option<String>, Option<f64>), BackendError> {
     let a = &plan.params.adaptive;
     if mode != Mode::Adaptive || a.tolerance.is_none() || !a.probe || plan.lod.is_some() {
-        return Ok(None);
+        return Ok((None, None));
     }
     let particles = scene.particles();
     let work = crate::work::estimate(particles, &scene.camera, &plan.params)?;
     let known = scene.surface_flags().is_some();
     if crate::work::adaptivity_can_pay(work, particles.len(), known) {
-        return Ok(None);
+        return Ok((None, Some(work)));
     }
-    Ok(Some(format!(
+    let why = format!(
         "adaptive sampling skipped for this view: its full-rate cast is about {:.0} kernel \
          evaluations a particle, less than the plan's own work; rendered at full rate",
         work / particles.len().max(1) as f64
-    )))
+    );
+    Ok((Some(why), Some(work)))
 }
 
 /// Makes what the render of `plan` needs of `scene`: the level-of-detail cut (with a note

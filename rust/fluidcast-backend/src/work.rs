@@ -83,7 +83,11 @@ pub fn check(
     params: &RenderParams,
     limit: f64,
 ) -> Result<(), BackendError> {
-    let work = estimate(particles, camera, params)?;
+    refuse_above(estimate(particles, camera, params)?, particles, limit)
+}
+
+/// [`check`] of a view whose [`estimate`] is already known: `work` kernel evaluations.
+pub fn refuse_above(work: f64, particles: &Particles, limit: f64) -> Result<(), BackendError> {
     if work <= limit {
         return Ok(());
     }
