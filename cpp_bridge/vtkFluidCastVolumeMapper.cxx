@@ -189,12 +189,12 @@ void ColourRange(vtkVolumeProperty* prop, double range[2])
 }
 
 /** The volume property's colour and opacity tables over the colour function's range, as
- * VTK's own volume mappers sample them, and its opacity unit distance. */
-void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop)
+ * VTK's own volume mappers sample them, and its opacity unit distance; `range` gets that
+ * range. */
+void SetTransferFunction(fluidcast::Renderer& r, vtkVolumeProperty* prop, double range[2])
 {
   const int n = 1024;
   std::vector<double> rgb(3 * n), opacity(n);
-  double range[2] = { 0, 1 };
   ColourRange(prop, range);
   if (prop->GetColorChannels(0) == 1)
   {
@@ -914,7 +914,8 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   {
     fluidcast::Renderer& r = *this->Impl->Renderer;
     r.set_camera(Describe(cam));
-    SetTransferFunction(r, vol->GetProperty());
+    double range[2] = { 0, 1 };
+    SetTransferFunction(r, vol->GetProperty(), range);
     r.set_surfaces(Surfaces(this->BlendMode, this->IsoSurfaceField, this->IsoSurfaceOpacity,
       this->IsoSurfaceWithVolume != 0, vol->GetProperty()));
     const double* c = this->CroppingRegionPlanes;
@@ -933,8 +934,6 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     }
     this->LastSamples = static_cast<vtkIdType>(info.samples);
     this->LastTiles = static_cast<vtkIdType>(info.tiles);
-    double range[2] = { 0, 1 };
-    ColourRange(vol->GetProperty(), range);
     const std::string warning = this->Impl->RangeWarning(range, this->GetDataSetInput());
     if (!warning.empty())
     {
