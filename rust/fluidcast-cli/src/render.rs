@@ -783,11 +783,14 @@ impl Job<'_> {
             let (lo, hi) = defaults::auto_range(particles, p.kernel, p.field);
             return Ok(tf.with_range(lo, hi)?);
         }
+        // Only --range first warns (once), so only then is the frame's own range needed.
+        if choice != RangeChoice::First || self.warned_range {
+            return Ok(tf);
+        }
         let (lo, hi) = defaults::data_range(particles, p.kernel, p.field);
         let (a, b) = tf.range;
         let slack = 0.01 * (b - a);
-        if choice == RangeChoice::First && (lo < a - slack || hi > b + slack) && !self.warned_range
-        {
+        if lo < a - slack || hi > b + slack {
             eprintln!(
                 "warning: a frame's values [{lo:.6}, {hi:.6}] lie outside the colour range \
                  [{a:.6}, {b:.6}] of the first frame (--range first): they saturate; \
