@@ -1119,7 +1119,10 @@ proptest! {
             prm.depth_limit = Some(std::sync::Arc::from(d));
             off = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         }
-        prm.adaptive = PlanParams { tolerance: Some(1.0), ..Default::default() }.strict();
+        // Without the probe: it may (rightly) leave every bundle unanalysed where its eighth
+        // predicts too small a saving (the layers seen nearly edge-on, bundle 5, depth 4:
+        // 22 bundles), and this property is about plans that adapt.
+        prm.adaptive = PlanParams { tolerance: Some(1.0), probe: false, ..Default::default() }.strict();
         let probe = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
         // Twice the median full-rate bound of the bundles that see particles.
         let mut widths: Vec<f64> = probe.plan.full_bounds.iter().map(|b| b.width()).filter(|&w| w > 0.0).collect();
