@@ -231,7 +231,7 @@ struct BundleScratch {
     sums: SpanSums,
     zs: SpanDepths,
     local: Vec<Reaching>,
-    live: Vec<bool>,
+    live: Vec<f32>,
 }
 
 impl BundleScratch {
@@ -242,7 +242,7 @@ impl BundleScratch {
             sums: SpanSums::new(slots, depth_samples.max(64)),
             zs: SpanDepths::default(),
             local: Vec::new(),
-            live: vec![false; slots],
+            live: vec![0.0; slots],
         }
     }
 }
@@ -303,10 +303,16 @@ impl BundleCast {
                 Ray::through_pixel(&grid.frame, i, j)
             })
             .collect();
+        let middle = Ray::through_point(
+            &grid.frame,
+            f64::from(x0 + x1) / 2.0,
+            f64::from(y0 + y1) / 2.0,
+        );
         let lanes = BundleRays::new(
             cast.iter()
                 .zip(&rays)
                 .map(|(&r, &ray)| ((r % width, r / width), ray)),
+            middle,
         );
         // The image pixels of the rays cast: a particle's rectangle must meet them.
         let cast_box = cast
@@ -417,8 +423,10 @@ fn cast_bundle(
                 reach,
             })
         }));
+        // 1 for the rays still taking samples, 0 for the others and the padding slots.
+        live.fill(0.0);
         for (slot, &r) in cast.iter().enumerate() {
-            live[slot] = !comps[r].done;
+            live[slot] = if comps[r].done { 0.0 } else { 1.0 };
         }
         pulp::Arch::new().dispatch(Scatter {
             sums,
