@@ -165,42 +165,57 @@ pub struct Distinct {
 impl Distinct {
     /// The distinct positions of `positions` (bit-equal after turning -0 into 0; NaN
     /// coordinates compare by their bits).
+    ///
+    /// Each position's key and index are packed into one `u128` and sorted in parallel: equal
+    /// keys come out in index order, as a stable sort by key would leave them, without a
+    /// comparison that reaches into `positions` (sorting indices by a key read through them
+    /// took 0.3 s of a 1.9M-particle frame's surface flags). The groups are then numbered in
+    /// order of first appearance by one scan over the input, not a second sort.
+    /// Transient memory: 16 bytes a position for the keys, then 4 for the first-appearance
+    /// marks.
     pub fn of(positions: &[[f32; 3]]) -> Distinct {
-        let key = |i: u32| positions[i as usize].map(|v| (v + 0.0).to_bits());
-        let mut order: Vec<u32> = (0..positions.len() as u32).collect();
-        // Stable: equal keys stay in input order, so each group's first index comes first.
-        order.par_sort_by_key(|&i| key(i));
+        let mut keyed: Vec<u128> = positions
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let k = p.map(|v| u128::from((v + 0.0).to_bits()));
+                (k[0] << 96) | (k[1] << 64) | (k[2] << 32) | i as u128
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        let key = |x: u128| x >> 32;
+        // Sorted runs of one key are groups; `first[i]`, the group whose first point is i.
         let mut of = vec![0u32; positions.len()];
-        let mut firsts: Vec<u32> = Vec::new();
+        let mut first = vec![u32::MAX; positions.len()];
         let mut weights_sorted: Vec<u32> = Vec::new();
-        for (k, &i) in order.iter().enumerate() {
-            if k == 0 || key(i) != key(order[k - 1]) {
-                firsts.push(i);
+        for (k, &x) in keyed.iter().enumerate() {
+            let i = x as u32 as usize;
+            if k == 0 || key(x) != key(keyed[k - 1]) {
+                first[i] = weights_sorted.len() as u32;
                 weights_sorted.push(1);
             } else if let Some(w) = weights_sorted.last_mut() {
                 *w += 1;
             }
-            of[i as usize] = firsts.len() as u32 - 1;
+            of[i] = weights_sorted.len() as u32 - 1;
         }
+        drop(keyed);
         // Renumber the groups in order of first appearance.
-        let mut by_first: Vec<u32> = (0..firsts.len() as u32).collect();
-        by_first.sort_unstable_by_key(|&g| firsts[g as usize]);
-        let mut rank = vec![0u32; firsts.len()];
-        for (r, &g) in by_first.iter().enumerate() {
-            rank[g as usize] = r as u32;
+        let mut rank = vec![0u32; weights_sorted.len()];
+        let mut points = Vec::with_capacity(weights_sorted.len());
+        let mut weights = Vec::with_capacity(weights_sorted.len());
+        for (i, &g) in first.iter().enumerate() {
+            if g != u32::MAX {
+                rank[g as usize] = points.len() as u32;
+                points.push(positions[i]);
+                weights.push(weights_sorted[g as usize]);
+            }
         }
         for o in &mut of {
             *o = rank[*o as usize];
         }
         Distinct {
-            points: by_first
-                .iter()
-                .map(|&g| positions[firsts[g as usize] as usize])
-                .collect(),
-            weights: by_first
-                .iter()
-                .map(|&g| weights_sorted[g as usize])
-                .collect(),
+            points,
+            weights,
             of,
         }
     }
@@ -233,5 +248,43 @@ mod distinct_tests {
         assert_eq!(d.of, vec![0, 1, 0, 1, 2]);
         assert!(!d.all_distinct());
         assert!(Distinct::of(&p[3..]).all_distinct());
+    }
+
+    proptest::proptest! {
+        /// Against the definition, by a quadratic scan: each position once in order of first
+        /// appearance (−0 as 0, NaN by its bits), its copies counted, every point mapped to it.
+        #[test]
+        fn distinct_equals_a_quadratic_scan(
+            picks in proptest::collection::vec(0usize..12, 0..200),
+        ) {
+            let pool: Vec<[f32; 3]> = (0..12)
+                .map(|k| match k {
+                    0 => [0.0, 0.0, 0.0],
+                    1 => [-0.0, 0.0, 0.0],
+                    2 => [f32::NAN, 1.0, 2.0],
+                    _ => [k as f32 * 0.5, (k % 3) as f32, 1.0 + (k % 2) as f32 * 1e-7],
+                })
+                .collect();
+            let p: Vec<[f32; 3]> = picks.iter().map(|&k| pool[k]).collect();
+            let bits = |q: &[f32; 3]| q.map(|v| (v + 0.0).to_bits());
+            let (mut points, mut weights, mut of) = (Vec::<[f32; 3]>::new(), Vec::new(), Vec::new());
+            for q in &p {
+                match points.iter().position(|r| bits(r) == bits(q)) {
+                    Some(g) => {
+                        weights[g] += 1;
+                        of.push(g as u32);
+                    }
+                    None => {
+                        points.push(*q);
+                        weights.push(1u32);
+                        of.push(points.len() as u32 - 1);
+                    }
+                }
+            }
+            let d = Distinct::of(&p);
+            proptest::prop_assert_eq!(d.points.iter().map(bits).collect::<Vec<_>>(), points.iter().map(bits).collect::<Vec<_>>());
+            proptest::prop_assert_eq!(d.weights, weights);
+            proptest::prop_assert_eq!(d.of, of);
+        }
     }
 }
