@@ -228,7 +228,7 @@ impl Renderer {
 }
 
 /// Why the adaptive plan of `plan` is skipped for full rate on this view, if it is: its own
-/// work would cost more than the whole full-rate cast ([`crate::work::adaptivity_can_pay`]);
+/// work would cost more than it can be counted on saving ([`crate::work::adaptivity_can_pay`]);
 /// and that cast's [`crate::work::estimate`] when it was made. Not with level of detail (its
 /// particles are known only after the cut), nor without the probe (`--no-probe`: analyse
 /// every bundle, whatever it costs).
@@ -249,7 +249,8 @@ fn skip_adaptivity(
     }
     let why = format!(
         "adaptive sampling skipped for this view: its full-rate cast is about {:.0} kernel \
-         evaluations a particle, less than the plan's own work; rendered at full rate",
+         evaluations a particle, too few for the plan to save more than its own work costs \
+         (supports a few pixels wide); rendered at full rate",
         work / particles.len().max(1) as f64
     );
     Ok((Some(why), Some(work)))
