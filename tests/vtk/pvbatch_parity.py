@@ -4,7 +4,9 @@ VTK window and ParaView's representation draw the same image of one shared frame
     PYTHONPATH=BUILD/python pvbatch pvbatch_parity.py PLUGIN.so DATA.vtu ARRAY OUTDIR CLI
 
 The frame: DATA's ARRAY (magnitude) at 200x150 on white, a fixed colour map and opacity
-function, error tolerance 0.1 (coarse enough that the plan's switches show). Per option
+function, error tolerance 0.1 (coarse enough that the plan's switches show), without the
+probe (with it, a frame whose supports are this few pixels wide is rendered at full rate,
+where no plan switch shows). Per option
 (mode, field, tolerance, probe, relaxation, strict bound, bundle, depth samples, sampling
 scale, backend, level of detail, tiles, iso-surfaces, RBF post and pre, noise, seed, step,
 shadows, shadow samples, samples per pixel) the three images must agree within 2/255 per
@@ -56,6 +58,8 @@ if (missing := missing_data(data)) is not None:
 W, H = 200, 150
 AGREE = 2  # /255 per channel
 TOLERANCE = 0.1
+# The base frame runs without the probe (`--no-probe`); the CLI option that leaves that out.
+PROBE_ON = "(probe on)"
 SPECULAR_POWER = 20.0
 
 LoadPlugin(plugin, remote=False, ns=globals())
@@ -166,6 +170,10 @@ def cli_image(name, extra):
            "--backend", "cpu", "--specular-power", str(SPECULAR_POWER), *extra, "-o", png]
     if "--error-tolerance" not in extra:
         cmd[-2:-2] = ["--error-tolerance", str(TOLERANCE)]
+    if PROBE_ON in cmd:
+        cmd.remove(PROBE_ON)
+    else:
+        cmd[-2:-2] = ["--no-probe"]
     subprocess.run(cmd, check=True, stderr=subprocess.DEVNULL)
     return read_png(png)
 
@@ -177,6 +185,7 @@ def pv_last(what):
 
 
 # --- the options: (name, CLI options, mapper settings, ParaView properties, compared with) ---
+
 def rbf_vtk(m, classification="post", spp=1, shadows=False):
     m.SetField("rbf")
     m.SetRBFClassification(classification)
@@ -207,7 +216,7 @@ OPTIONS = [
      "base"),
     ("tolerance_off", ["--error-tolerance", "off"], lambda m: m.SetErrorTolerance(0.0),
      {"FluidCastErrorTolerance": 0.0}, "base"),
-    ("probe_off", ["--no-probe"], lambda m: m.SetProbe(0), {"FluidCastProbe": 0}, "base"),
+    ("probe_on", [PROBE_ON], lambda m: m.SetProbe(1), {"FluidCastProbe": 1}, "base"),
     ("lod", ["--lod", "16"], lambda m: m.SetLODTolerance(16.0), {"FluidCastLODTolerance": 16.0},
      "base"),
     ("iso", ["--iso", "0.5"], iso_vtk, {"FluidCastIsosurfaceValues": [0.5]}, "base"),
@@ -253,7 +262,7 @@ def reset():
     m.SetGridCell(1)
     m.SetField("csph")
     m.SetErrorTolerance(TOLERANCE)
-    m.SetProbe(1)
+    m.SetProbe(0)
     m.SetLODTolerance(0.0)
     m.SetBlendModeToComposite()
     prop.GetIsoSurfaceValues().SetNumberOfContours(0)
@@ -274,7 +283,7 @@ def reset():
     display.FluidCastGridCell = 1
     display.FluidCastField = "CSPH"
     display.FluidCastErrorTolerance = TOLERANCE
-    display.FluidCastProbe = 1
+    display.FluidCastProbe = 0
     display.FluidCastLODTolerance = 0.0
     display.FluidCastIsosurfaceValues = []
     for k, v in rbf_pv().items():
