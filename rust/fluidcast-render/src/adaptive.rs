@@ -231,7 +231,7 @@ struct BundleScratch {
     sums: SpanSums,
     zs: SpanDepths,
     local: Vec<Reaching>,
-    live: Vec<f32>,
+    live: Vec<bool>,
 }
 
 impl BundleScratch {
@@ -242,7 +242,7 @@ impl BundleScratch {
             sums: SpanSums::new(slots, depth_samples.max(64)),
             zs: SpanDepths::default(),
             local: Vec::new(),
-            live: vec![0.0; slots],
+            live: vec![false; slots],
         }
     }
 }
@@ -303,16 +303,10 @@ impl BundleCast {
                 Ray::through_pixel(&grid.frame, i, j)
             })
             .collect();
-        let middle = Ray::through_point(
-            &grid.frame,
-            f64::from(x0 + x1) / 2.0,
-            f64::from(y0 + y1) / 2.0,
-        );
         let lanes = BundleRays::new(
             cast.iter()
                 .zip(&rays)
                 .map(|(&r, &ray)| ((r % width, r / width), ray)),
-            middle,
         );
         // The image pixels of the rays cast: a particle's rectangle must meet them.
         let cast_box = cast
@@ -423,10 +417,8 @@ fn cast_bundle(
                 reach,
             })
         }));
-        // 1 for the rays still taking samples, 0 for the others and the padding slots.
-        live.fill(0.0);
         for (slot, &r) in cast.iter().enumerate() {
-            live[slot] = if comps[r].done { 0.0 } else { 1.0 };
+            live[slot] = !comps[r].done;
         }
         pulp::Arch::new().dispatch(Scatter {
             sums,
