@@ -243,8 +243,7 @@ fn skip_adaptivity(
     }
     let particles = scene.particles();
     let work = crate::work::estimate(particles, &scene.camera, &plan.params)?;
-    let known = scene.surface_flags().is_some();
-    if crate::work::adaptivity_can_pay(work, particles.len(), known) {
+    if crate::work::adaptivity_can_pay(work, particles.len()) {
         return Ok((None, Some(work)));
     }
     let why = format!(

@@ -57,30 +57,31 @@ pub fn estimate(
 /// surface flags 0.17–0.18 µs per particle, once per particle set). Taken at the cast's slowest
 /// evaluation, so that these costs are not overstated.
 pub const ANALYSIS_EVALUATIONS_PER_PARTICLE: f64 = 60.0;
-/// See [`ANALYSIS_EVALUATIONS_PER_PARTICLE`]: the surface flags, when not yet computed.
+/// See [`ANALYSIS_EVALUATIONS_PER_PARTICLE`]: the surface flags.
 pub const FLAGS_EVALUATIONS_PER_PARTICLE: f64 = 150.0;
 /// The share of the full-rate work that adaptive sampling is counted on saving where it
 /// runs. On the scenes developed on (docs/performance.md, issue 47) every view where the
 /// default lost to full rate had at most 2,146 estimated evaluations a particle, every view
-/// where it won at least 3,902 (a 42k-particle frame at 1024 × 768, even) or 10,856; with
-/// this share the threshold falls between them, at 3,360 with the flags to compute and 960
-/// without. It amounts to supports of about 8 pixels' radius and more (a particle of radius
-/// r pixels costs about 2π r³ evaluations), where the paper's plans have room to adapt.
+/// where it won or broke even at least 3,902 (a 42k-particle frame at 1024 × 768) or 10,856;
+/// with this share the threshold falls between them, at 3,360. It amounts to supports of
+/// about 8 pixels' radius and more (a particle of radius r pixels costs about 2π r³
+/// evaluations), where the paper's plans have room to adapt.
 pub const SAVED_SHARE: f64 = 1.0 / 16.0;
 
 /// Whether adaptive sampling can pay for its own work on a view whose full-rate cast takes
 /// `work` kernel evaluations ([`estimate`]) for `particles` particles: only if the share of
-/// the cast it can be counted on saving ([`SAVED_SHARE`]) exceeds the analysis (and the
-/// surface flags, unless `flags_known`). Below, the default would make a user wait longer
-/// than full rate (a million particles a few pixels wide: 11 evaluations a particle at
-/// 320 × 240; the 338k-particle dam break at 1024 × 768: 494).
-pub fn adaptivity_can_pay(work: f64, particles: usize, flags_known: bool) -> bool {
-    let per_particle = ANALYSIS_EVALUATIONS_PER_PARTICLE
-        + if flags_known {
-            0.0
-        } else {
-            FLAGS_EVALUATIONS_PER_PARTICLE
-        };
+/// the cast it can be counted on saving ([`SAVED_SHARE`]) exceeds the analysis and the
+/// surface flags. Below, the default would make a user wait longer than full rate (a million
+/// particles a few pixels wide: 11 evaluations a particle at 320 × 240; the 338k-particle dam
+/// break at 1024 × 768: 494).
+///
+/// The flags count even where a front-end keeps them from an earlier render (the VTK mapper,
+/// ParaView, a series of views): the decision must depend on the view alone, so that the CLI,
+/// the mapper and the Python module draw the same image of the same view (the pyvista test
+/// that compares the mapper's first and later renders with the CLI caught a mapper that had
+/// the flags adapting where the CLI did not).
+pub fn adaptivity_can_pay(work: f64, particles: usize) -> bool {
+    let per_particle = ANALYSIS_EVALUATIONS_PER_PARTICLE + FLAGS_EVALUATIONS_PER_PARTICLE;
     work * SAVED_SHARE >= per_particle * particles as f64
 }
 
@@ -181,15 +182,10 @@ mod tests {
     #[test]
     fn adaptivity_pays_only_above_its_own_work() {
         let n = 1000;
-        let own = ANALYSIS_EVALUATIONS_PER_PARTICLE * n as f64 / SAVED_SHARE;
-        let with_flags = own + FLAGS_EVALUATIONS_PER_PARTICLE * n as f64 / SAVED_SHARE;
-        assert!(adaptivity_can_pay(own, n, true));
-        assert!(!adaptivity_can_pay(own - 1.0, n, true));
-        assert!(!adaptivity_can_pay(with_flags - 1.0, n, false));
-        assert!(adaptivity_can_pay(with_flags, n, false));
-        assert!(
-            adaptivity_can_pay(0.0, 0, false),
-            "no particles: nothing to lose"
-        );
+        let per = ANALYSIS_EVALUATIONS_PER_PARTICLE + FLAGS_EVALUATIONS_PER_PARTICLE;
+        let threshold = per * n as f64 / SAVED_SHARE;
+        assert!(adaptivity_can_pay(threshold, n));
+        assert!(!adaptivity_can_pay(threshold - 1.0, n));
+        assert!(adaptivity_can_pay(0.0, 0), "no particles: nothing to lose");
     }
 }
