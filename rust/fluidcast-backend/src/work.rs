@@ -177,8 +177,8 @@ mod tests {
         assert!(check(&p, &cam, &params, 1e7).is_ok());
     }
 
-    /// The break-even: the cast's work per particle against the plan's own (and the surface
-    /// flags' while they are not computed).
+    /// The break-even: the share of the cast's work per particle that a plan can be counted
+    /// on saving, against the plan's own and the surface flags'.
     #[test]
     fn adaptivity_pays_only_above_its_own_work() {
         let n = 1000;

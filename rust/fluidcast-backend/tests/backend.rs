@@ -218,10 +218,10 @@ fn surfaces_stop_the_adaptive_volume_as_the_reference_does() {
     }
 }
 
-/// Adaptive sampling is skipped where its own work would cost more than the whole full-rate
-/// cast (here the cloud seen from 40 times further: its particles a pixel or two wide): the
+/// Adaptive sampling is skipped where its own work would cost more than it can be counted on
+/// saving (here the cloud seen from 40 times further: its particles a pixel or two wide): the
 /// render says so and is the full-rate image; with the probe off (`--no-probe`) the plan runs
-/// anyway; near, where the particles are wide, it runs as before.
+/// anyway; where the particles are wide enough, it runs.
 #[test]
 fn adaptivity_is_skipped_where_it_cannot_pay() {
     let (p, tf, cam, prm) = scene();

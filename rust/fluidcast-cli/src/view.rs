@@ -108,9 +108,9 @@ pub struct SamplingArgs {
     /// relaxed mode.
     #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_interpolation: bool,
-    /// Analyse every bundle: no check that the plan's own work is below the whole full-rate
-    /// cast (else the view renders at full rate), and no probe of an eighth of the bundles
-    /// first, which plans the rest at full rate where adapting would not pay.
+    /// Analyse every bundle: no check that the plan can save more than its own work costs
+    /// (else the view renders at full rate), and no probe of an eighth of the bundles first,
+    /// which plans the rest at full rate where adapting would not pay.
     #[arg(help_heading = "Expert: the sampling plan", long)]
     pub no_probe: bool,
     /// Do not force cells with surface particles to full rate.

@@ -60,7 +60,7 @@ fn modes_agree_within_their_promises() {
     render(&p("ref.exr"), &["--mode", "reference"]);
     render(&p("off.exr"), &["--error-tolerance", "off"]);
     // --no-probe: the adaptive plan runs on this small view, which it would skip by default
-    // (its analysis would cost more than the whole full-rate cast).
+    // (its supports are too few pixels wide for the plan to save more than it costs).
     render(
         &p("strict.exr"),
         &["--error-tolerance", "0.004", "--strict", "--no-probe"],
