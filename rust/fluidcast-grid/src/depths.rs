@@ -97,18 +97,42 @@ impl SampleDepths {
 /// The half-open index range of the ascending depths `zs` that lie in [z0, z1].
 #[inline]
 pub fn within(zs: &[f64], z0: f64, z1: f64) -> std::ops::Range<usize> {
-    // A cell's or span's few depths (≤ 64): branch-free counts, which on ascending depths
-    // equal the binary searches below and cost no mispredicted branches.
-    let (lo, hi) = if zs.len() <= 64 {
-        (
-            zs.iter().map(|&z| usize::from(z < z0)).sum(),
-            zs.iter().map(|&z| usize::from(z <= z1)).sum(),
-        )
-    } else {
-        (
-            zs.partition_point(|&z| z < z0),
-            zs.partition_point(|&z| z <= z1),
-        )
-    };
+    let lo = count_while(zs, |z| z < z0);
+    let hi = count_while(zs, |z| z <= z1);
     lo..hi.max(lo)
+}
+
+/// Depths per block of [`count_while`]'s first level.
+const BLOCK: usize = 16;
+
+/// How many of the ascending depths `zs` satisfy `pred`, which holds for a prefix of them
+/// (`zs.partition_point(pred)`). A cell's or span's few depths (≤ 64) are counted without
+/// branches; a ray's hundreds are searched by the first depth of each block of [`BLOCK`] (a
+/// branch-free halving: which side a halving takes is data that a branch predicts poorly),
+/// then counted within the block. In a perspective grid's footprints a plain binary search
+/// over 576 depths was 14 % of a 338k-particle frame's time at 256 × 192 (perf).
+#[inline]
+fn count_while(zs: &[f64], pred: impl Fn(f64) -> bool) -> usize {
+    let count = |zs: &[f64]| zs.iter().map(|&z| usize::from(pred(z))).sum::<usize>();
+    if zs.len() <= 4 * BLOCK {
+        return count(zs);
+    }
+    // Blocks whose first depth satisfies `pred`: a prefix of `n` blocks, found by halving.
+    let (mut base, mut n) = (0usize, zs.len().div_ceil(BLOCK));
+    while n > 1 {
+        let half = n / 2;
+        // Blocks base..base + half all start inside the prefix when block base + half - 1
+        // does; then the answer lies at or after base + half.
+        let inside = pred(zs[(base + half - 1) * BLOCK]);
+        base = if inside { base + half } else { base };
+        n -= half;
+    }
+    let blocks = base + usize::from(pred(zs[base * BLOCK]));
+    match blocks {
+        0 => 0,
+        b => {
+            let start = (b - 1) * BLOCK;
+            start + count(&zs[start..(start + BLOCK).min(zs.len())])
+        }
+    }
 }

@@ -167,6 +167,31 @@ fn within_matches_a_scan() {
     }
 }
 
+/// `within` over a ray's hundreds of depths (searched by blocks, then counted) equals the
+/// binary searches, at every depth, between depths and outside, for lengths around whole
+/// blocks, with repeated depths too.
+#[test]
+fn within_by_blocks_matches_binary_search() {
+    for n in [65, 79, 80, 81, 100, 255, 256, 257, 576, 1000] {
+        let plain: Vec<f64> = (0..n).map(|i| 2.0 * (1.01f64).powi(i as i32)).collect();
+        let repeated: Vec<f64> = (0..n).map(|i| (i / 7) as f64).collect();
+        for zs in [plain, repeated] {
+            let mut qs = vec![f64::NEG_INFINITY, -1.0, 1e9, f64::INFINITY];
+            for w in zs.windows(2) {
+                qs.extend([w[0], 0.5 * (w[0] + w[1])]);
+            }
+            qs.push(zs[n - 1]);
+            for &a in &qs {
+                for b in [a, a + 0.3, a * 1.5 + 1.0] {
+                    let want = zs.partition_point(|&z| z < a)..zs.partition_point(|&z| z <= b);
+                    let want = want.start..want.end.max(want.start);
+                    assert_eq!(within(&zs, a, b), want, "{n} depths, [{a}, {b}]");
+                }
+            }
+        }
+    }
+}
+
 /// The GPU places its depth samples by `support_depth_range`: it must be exactly the range the
 /// CPU's `view_particles` finds (same samples on both), and `None` for no particles or nothing
 /// in front of a perspective camera.

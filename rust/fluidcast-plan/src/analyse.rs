@@ -157,9 +157,8 @@ pub(crate) fn sample_reach(grid: &PerspectiveGrid) -> Vec<(u32, u32)> {
     grid.particles
         .par_iter()
         .map(|p| {
-            let lo = z.partition_point(|&d| d < p.c[2] - p.h());
-            let hi = z.partition_point(|&d| d <= p.c[2] + p.h());
-            (lo as u32, hi.max(lo) as u32)
+            let k = fluidcast_grid::within(z, p.c[2] - p.h(), p.c[2] + p.h());
+            (k.start as u32, k.end as u32)
         })
         .collect()
 }
