@@ -24,7 +24,7 @@ use fluidcast_view::ViewFrame;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use pairs::{bundle_offsets, chunk_count, Footprint};
+use pairs::{bundle_offsets, chunk_count, Foot, Footprint};
 use sort::sorted_cells;
 
 pub use depths::{within, SampleDepths, MAX_SAMPLES};
@@ -236,7 +236,11 @@ pub fn depth_range(zmin: f64, zmax: f64, perspective: bool) -> Option<(f64, f64)
 /// projected at its nearest and farthest depth ([`screen_extent`]), rounded out to whole
 /// pixels.
 pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
-    let [x0, x1, y0, y1] = screen_extent(frame, p, near, far)?;
+    covering_rect(frame, screen_extent(frame, p, near, far)?)
+}
+
+/// [`screen_rect`] of a particle whose [`screen_extent`] is `extent`.
+pub(crate) fn covering_rect(frame: &ViewFrame, [x0, x1, y0, y1]: [f64; 4]) -> Option<[u32; 4]> {
     let (w, h) = (frame.width as f64, frame.height as f64);
     let px0 = x0.floor().max(0.0);
     let px1 = x1.ceil().min(w);
@@ -252,8 +256,12 @@ pub fn screen_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
 /// millionth of a pixel against rounding): those whose ray can pass through the support, a
 /// pixel's width tighter on each side than [`screen_rect`]. `None` where there are none.
 pub fn centre_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> Option<[u32; 4]> {
+    centres_in(frame, screen_extent(frame, p, near, far)?)
+}
+
+/// [`centre_rect`] of a particle whose [`screen_extent`] is `extent`.
+fn centres_in(frame: &ViewFrame, [x0, x1, y0, y1]: [f64; 4]) -> Option<[u32; 4]> {
     const SLACK: f64 = 1e-6;
-    let [x0, x1, y0, y1] = screen_extent(frame, p, near, far)?;
     let (w, h) = (frame.width as f64, frame.height as f64);
     // Pixel i's centre is i + ½: the first at or after e − ½ and the last at or before.
     let first = |e: f64, n: f64| (e - 0.5 - SLACK).ceil().clamp(0.0, n);
@@ -268,8 +276,17 @@ pub fn centre_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> 
 /// [`centre_rect`] as [`PerspectiveGrid::rects`] holds it: 16 bits a coordinate (the grid
 /// refuses frames wider or taller than that), all zero where there are no pixels.
 pub fn stored_rect(frame: &ViewFrame, p: &ViewParticle, near: f64, far: f64) -> [u16; 4] {
-    centre_rect(frame, p, near, far)
-        .map_or([0; 4], |r| r.map(|v| v.min(u32::from(u16::MAX)) as u16))
+    stored(centre_rect(frame, p, near, far))
+}
+
+/// [`stored_rect`] of a particle whose [`screen_extent`] is `extent` (`None`: outside
+/// `[near, far]`).
+pub(crate) fn stored_centres(frame: &ViewFrame, extent: Option<[f64; 4]>) -> [u16; 4] {
+    stored(extent.and_then(|e| centres_in(frame, e)))
+}
+
+fn stored(rect: Option<[u32; 4]>) -> [u16; 4] {
+    rect.map_or([0; 4], |r| r.map(|v| v.min(u32::from(u16::MAX)) as u16))
 }
 
 /// The extent `[x0, x1] × [y0, y1]` in image coordinates (pixel units from the top-left
@@ -687,12 +704,6 @@ impl PerspectiveGrid {
         let dz = params.depth_samples as usize;
         let depths = SampleDepths::new(frame, near, far, sampling_scale, dz)?;
         grid.cells_z = (depths.len() / dz) as u32;
-        grid.rects = grid
-            .particles
-            .par_iter()
-            .map(|p| stored_rect(frame, p, near, far))
-            .collect();
-
         let fp = Footprint {
             frame,
             depths: &depths,
@@ -705,9 +716,13 @@ impl PerspectiveGrid {
         // particles in chunks counted in parallel: each chunk writes its pairs from its own
         // start in each bundle, so the pairs lie in particle order as a sequential pass puts
         // them.
+        // Each particle's stored pixel rectangle and footprint, from one projection.
+        let (rects, feet): (Vec<[u16; 4]>, Vec<Foot>) =
+            grid.particles.par_iter().map(|p| fp.place(p)).unzip();
+        grid.rects = rects;
         let n = grid.particles.len();
         let chunk_len = n.div_ceil(chunk_count(n, nb)).max(1);
-        let (counts, visible) = fp.count(&grid.particles, chunk_len, nb);
+        let (counts, visible) = fp.count(&feet, chunk_len, nb);
         grid.particles_visible = visible;
         let offsets = bundle_offsets(&counts, nb);
         // Keys now, then references and the sorted copy: refused before allocating when the
@@ -722,7 +737,8 @@ impl PerspectiveGrid {
             },
             pairs.saturating_mul(PAIR_BYTES),
         )?;
-        let mut keys = fp.keys(&grid.particles, chunk_len, counts, offsets[nb]);
+        let mut keys = fp.keys(&feet, chunk_len, counts, offsets[nb]);
+        drop(feet);
         let per_bundle = sorted_cells(&mut keys, &offsets);
         grid.refs = keys.iter().map(|&k| k as u32).collect();
         grid.cells.reserve(per_bundle.iter().map(Vec::len).sum());

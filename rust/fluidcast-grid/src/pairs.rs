@@ -1,10 +1,10 @@
 //! The pairs stage (the GPU's grid.wgsl): each particle's footprint in the view's grid
-//! (bundle rectangle and cell depth range), the particle–cell pairs counted per bundle in
-//! parallel chunks, and their keys written bundle by bundle.
+//! (bundle rectangle and cell depth range), found once, the particle–cell pairs counted per
+//! bundle in parallel chunks, and their keys written bundle by bundle.
 
 use rayon::prelude::*;
 
-use crate::{screen_rect, SampleDepths, ViewParticle};
+use crate::{covering_rect, screen_extent, stored_centres, SampleDepths, ViewParticle};
 use fluidcast_view::ViewFrame;
 
 /// Chunks of particles the grid counts and fills in parallel: enough for every thread,
@@ -27,36 +27,64 @@ pub(crate) struct Footprint<'a> {
     pub(crate) bundles_x: u32,
 }
 
+/// A particle's footprint in the grid: the bundle columns `b[0]..=b[1]` and rows
+/// `b[2]..=b[3]`, and cells `z[0]..=z[1]` along depth; none (`z[0] > z[1]`) where it reaches
+/// no pixel or depth sample. 16 bytes a particle, found once and read by both passes.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Foot {
+    b: [u16; 4],
+    z: [u32; 2],
+}
+
+impl Foot {
+    const NONE: Foot = Foot {
+        b: [0; 4],
+        z: [1, 0],
+    };
+
+    fn is_some(&self) -> bool {
+        self.z[0] <= self.z[1]
+    }
+}
+
 impl Footprint<'_> {
-    /// The bundle rectangle and cell depth range (inclusive) particle `p` reaches, `None`
-    /// when it reaches no pixel or depth sample. Computed where needed, twice, rather than
-    /// stored: 28 bytes a particle.
+    /// Particle `p`'s stored pixel rectangle ([`crate::stored_rect`]) and its footprint, from
+    /// one projection of its support.
     #[inline]
-    pub(crate) fn of(&self, p: &ViewParticle) -> Option<[u32; 6]> {
+    pub(crate) fn place(&self, p: &ViewParticle) -> ([u16; 4], Foot) {
         let (near, far) = self.range;
-        let r = screen_rect(self.frame, p, near, far)?;
+        let extent = screen_extent(self.frame, p, near, far);
+        (stored_centres(self.frame, extent), self.foot(p, extent))
+    }
+
+    /// The bundle rectangle and cell depth range (inclusive) particle `p` reaches, its
+    /// [`screen_extent`] being `extent`.
+    #[inline]
+    fn foot(&self, p: &ViewParticle, extent: Option<[f64; 4]>) -> Foot {
+        let Some(r) = extent.and_then(|e| covering_rect(self.frame, e)) else {
+            return Foot::NONE;
+        };
         let k = self.depths.indices_within(p.c[2] - p.h(), p.c[2] + p.h());
         if k.is_empty() {
-            return None;
+            return Foot::NONE;
         }
+        // Bundle indices fit 16 bits: the grid refuses frames wider or taller than that.
         let (d, dz) = (self.bundle, self.dz);
-        Some([
-            r[0] / d,
-            (r[1] - 1) / d,
-            r[2] / d,
-            (r[3] - 1) / d,
-            (k.start / dz) as u32,
-            ((k.end - 1) / dz) as u32,
-        ])
+        let b = |v: u32| (v / d) as u16;
+        Foot {
+            b: [b(r[0]), b(r[1] - 1), b(r[2]), b(r[3] - 1)],
+            z: [(k.start / dz) as u32, ((k.end - 1) / dz) as u32],
+        }
     }
 
     /// Calls `pair(bundle, cell z, merge bit)` for every cell of footprint `f`.
     #[inline]
-    pub(crate) fn each_pair(&self, f: &[u32; 6], pair: &mut dyn FnMut(usize, u32, bool)) {
-        for y in f[2]..=f[3] {
-            for x in f[0]..=f[1] {
-                for z in f[4]..=f[5] {
-                    pair((y * self.bundles_x + x) as usize, z, z < f[5]);
+    pub(crate) fn each_pair(&self, f: &Foot, pair: &mut dyn FnMut(usize, u32, bool)) {
+        let [x0, x1, y0, y1] = f.b.map(u32::from);
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                for z in f.z[0]..=f.z[1] {
+                    pair((y * self.bundles_x + x) as usize, z, z < f.z[1]);
                 }
             }
         }
@@ -66,18 +94,18 @@ impl Footprint<'_> {
     /// particles.
     pub(crate) fn count(
         &self,
-        particles: &[ViewParticle],
+        feet: &[Foot],
         chunk_len: usize,
         nb: usize,
     ) -> (Vec<Vec<u32>>, usize) {
-        let counts: Vec<(Vec<u32>, usize)> = particles
+        let counts: Vec<(Vec<u32>, usize)> = feet
             .par_chunks(chunk_len)
-            .map(|ps| {
+            .map(|fs| {
                 let mut c = vec![0u32; nb];
                 let mut visible = 0;
-                for f in ps.iter().filter_map(|p| self.of(p)) {
+                for f in fs.iter().filter(|f| f.is_some()) {
                     visible += 1;
-                    self.each_pair(&f, &mut |b, _, _| c[b] += 1);
+                    self.each_pair(f, &mut |b, _, _| c[b] += 1);
                 }
                 (c, visible)
             })
@@ -90,7 +118,7 @@ impl Footprint<'_> {
     /// chunk's keys from its own start in each bundle (`counts`), `total` in all.
     pub(crate) fn keys(
         &self,
-        particles: &[ViewParticle],
+        feet: &[Foot],
         chunk_len: usize,
         counts: Vec<Vec<u32>>,
         total: usize,
@@ -109,16 +137,14 @@ impl Footprint<'_> {
             }
         }
         drop(counts);
-        particles
-            .par_chunks(chunk_len)
+        feet.par_chunks(chunk_len)
             .zip(own.into_par_iter())
             .enumerate()
-            .for_each(|(ci, (ps, mut slices))| {
+            .for_each(|(ci, (fs, mut slices))| {
                 let mut used = vec![0u32; nb];
-                for (k, p) in ps.iter().enumerate() {
-                    let Some(f) = self.of(p) else { continue };
+                for (k, f) in fs.iter().enumerate().filter(|(_, f)| f.is_some()) {
                     let j = (ci * chunk_len + k) as u64;
-                    self.each_pair(&f, &mut |b, z, bit| {
+                    self.each_pair(f, &mut |b, z, bit| {
                         slices[b][used[b] as usize] = ((z as u64) << 33) | ((bit as u64) << 32) | j;
                         used[b] += 1;
                     });
