@@ -4,7 +4,7 @@ renders (what ParaView does while the camera moves) of one data set while the ca
     tests/vtk/with_xvfb.sh env LD_PRELOAD=$PWD/build/lib/libfluidcast_expat_fix.so \\
         PYTHONPATH=build/python pvbatch examples/pvbatch_interactive.py \\
         build/lib/paraview-plugins/fluidcast/fluidcast.so DATA.vtu \\
-        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--cli [--cli-out DIR]]
+        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--max-distance 8] [--cli [--cli-out DIR]]
 
 Prints a table of milliseconds per frame (wall clock around the view's render call) and the
 mapper's image sample distance. With --cli it then renders the last view once more and times
@@ -38,6 +38,8 @@ p.add_argument("--array", default="velocity")
 p.add_argument("--size", default="1024x768")
 p.add_argument("--frames", type=int, default=6)
 p.add_argument("--auto", type=int, default=1, help="FluidCastAutoAdjustSampleDistances")
+p.add_argument("--max-distance", type=int, default=8,
+               help="FluidCastMaximumImageSampleDistance: the coarsest interactive render")
 p.add_argument("--cli", action="store_true", help="also time the CLI on the last still image")
 p.add_argument("--cli-out", type=Path,
                help="with --cli: keep both images, the camera and the transfer function here")
@@ -54,14 +56,16 @@ ColorBy(display, ("POINTS", a.array, "Magnitude"))
 display.RescaleTransferFunctionToDataRange(True, False)
 display.ScalarOpacityFunction = GetOpacityTransferFunction(a.array)
 display.FluidCastAutoAdjustSampleDistances = a.auto
+display.FluidCastMaximumImageSampleDistance = a.max_distance
 view.ResetCamera()
 cam = GetActiveCamera()
 cam.Elevation(20)
 Render(view)
 volumes = view.GetClientSideObject().GetRenderer().GetVolumes()
 volumes.InitTraversal()
-volume = volumes.GetNextVolume()
-mapper = volume.GetMapper()
+# The representation keeps ParaView's other volume mappers too: find ours.
+mappers = [volumes.GetNextVolume().GetMapper() for _ in range(volumes.GetNumberOfItems())]
+mapper = next(m for m in mappers if m.IsA("vtkFluidCastVolumeMapper"))
 
 
 def timed(render):
