@@ -1,5 +1,6 @@
 #include "vtkFluidCastVolumeMapper.h"
 
+#include "vtkActor2D.h"
 #include "vtkCamera.h"
 #include "vtkColorTransferFunction.h"
 #include "vtkContourValues.h"
@@ -14,6 +15,7 @@
 #include "vtkPiecewiseFunction.h"
 #include "vtkPointData.h"
 #include "vtkPointSet.h"
+#include "vtkPropCollection.h"
 #include "vtkPoints.h"
 #include "vtkRenderWindow.h"
 #include "vtkRenderer.h"
@@ -278,6 +280,35 @@ std::vector<float> Upsample(std::vector<float> small, int sw, int sh, int w, int
     }
   }
   return out;
+}
+
+/** Whether a visible prop of `ren` other than volumes may have drawn opaque geometry, which
+ * limits the rays: one that says so (vtkProp::HasOpaqueGeometry, yes unless a prop knows
+ * better) and has something to draw (initialised bounds; a prop without bounds counts, unless
+ * it is a 2D overlay). Volumes leave the depth buffer as it is; ParaView keeps a visible but
+ * empty actor in the view. Without such a prop the depth buffer holds only its clear value,
+ * which limits nothing: reading it back cost 16-30 ms a frame at 1024 x 768 under Mesa's
+ * llvmpipe (glReadPixels of the whole viewport), a fifth of an interactive render of 338k
+ * particles at sample distance 4. */
+bool OpaqueGeometryBesides(vtkRenderer* ren, vtkVolume* self)
+{
+  vtkPropCollection* props = ren->GetViewProps();
+  vtkCollectionSimpleIterator it;
+  props->InitTraversal(it);
+  while (vtkProp* p = props->GetNextProp(it))
+  {
+    if (p == self || !p->GetVisibility() || vtkVolume::SafeDownCast(p) ||
+      !p->HasOpaqueGeometry())
+    {
+      continue;
+    }
+    const double* b = p->GetBounds();
+    if (b ? vtkMath::AreBoundsInitialized(b) : !vtkActor2D::SafeDownCast(p))
+    {
+      return true;
+    }
+  }
+  return false;
 }
 
 /** Composites a premultiplied RGBA image (rows top first) over the framebuffer's viewport. */
@@ -908,7 +939,9 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
   // One ray per s × s pixels (s = 1 on still renders), then interpolated to the viewport.
   const int s = this->ChooseImageSampleDistance(vol, w, h);
   const int sw = (w + s - 1) / s, sh = (h + s - 1) / s;
-  std::vector<float> limit = this->DepthLimits(ren, w, h, x0, y0, sw, sh);
+  std::vector<float> limit = OpaqueGeometryBesides(ren, vol)
+    ? this->DepthLimits(ren, w, h, x0, y0, sw, sh)
+    : std::vector<float>();
   std::vector<float> rgba(static_cast<size_t>(4) * sw * sh), depth(static_cast<size_t>(sw) * sh);
   try
   {
