@@ -4,7 +4,8 @@ renders (what ParaView does while the camera moves) of one data set while the ca
     tests/vtk/with_xvfb.sh env LD_PRELOAD=$PWD/build/lib/libfluidcast_expat_fix.so \\
         PYTHONPATH=build/python pvbatch examples/pvbatch_interactive.py \\
         build/lib/paraview-plugins/fluidcast/fluidcast.so DATA.vtu \\
-        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--max-distance 8] [--cli [--cli-out DIR]]
+        [--array velocity] [--size 1024x768] [--frames 6] [--auto 1|0] [--max-distance 8]
+        [--cli [--cli-out DIR]]
 
 Prints a table of milliseconds per frame (wall clock around the view's render call) and the
 mapper's image sample distance. With --cli it then renders the last view once more and times
@@ -63,9 +64,10 @@ cam.Elevation(20)
 Render(view)
 volumes = view.GetClientSideObject().GetRenderer().GetVolumes()
 volumes.InitTraversal()
-# The representation keeps ParaView's other volume mappers too: find ours.
-mappers = [volumes.GetNextVolume().GetMapper() for _ in range(volumes.GetNumberOfItems())]
-mapper = next(m for m in mappers if m.IsA("vtkFluidCastVolumeMapper"))
+# The view holds ParaView's other volumes too: find fluidcast's.
+candidates = [volumes.GetNextVolume() for _ in range(volumes.GetNumberOfItems())]
+volume = next(v for v in candidates if v.GetMapper().IsA("vtkFluidCastVolumeMapper"))
+mapper = volume.GetMapper()
 
 
 def timed(render):
