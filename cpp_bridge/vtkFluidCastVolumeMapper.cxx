@@ -245,37 +245,44 @@ fluidcast::SurfaceSettings Surfaces(int blendMode, const char* field, double opa
 }
 
 /** A premultiplied RGBA image of sw × sh pixels (rows top first) interpolated bilinearly onto
- * the w × h pixels of the same window. */
-std::vector<float> Upsample(std::vector<float> small, int sw, int sh, int w, int h)
+ * the w × h pixels of the same window, rows bottom first as VTK's pixel calls take them (the
+ * same image, flipped, when the sizes agree). */
+std::vector<float> UpsampleFlipped(const std::vector<float>& small, int sw, int sh, int w, int h)
 {
-  if (sw == w && sh == h)
+  // Per target column (row): the source pixels on either side of its centre, clamped to the
+  // source's pixel centres, and the weight of the second.
+  struct Tap
   {
-    return small;
-  }
-  // Source coordinate of a target pixel centre, clamped to the source's pixel centres.
-  auto at = [](int t, int n, int sn, int& a, int& b, float& f) {
-    const double x = std::clamp((t + 0.5) * sn / n - 0.5, 0.0, sn - 1.0);
-    a = static_cast<int>(x);
-    b = std::min(a + 1, sn - 1);
-    f = static_cast<float>(x - a);
+    size_t a, b;
+    float f;
   };
+  auto taps = [](int n, int sn) {
+    std::vector<Tap> t(n);
+    for (int k = 0; k < n; ++k)
+    {
+      const double x = std::clamp((k + 0.5) * sn / n - 0.5, 0.0, sn - 1.0);
+      const int a = static_cast<int>(x);
+      t[k] = { static_cast<size_t>(a), static_cast<size_t>(std::min(a + 1, sn - 1)),
+        static_cast<float>(x - a) };
+    }
+    return t;
+  };
+  const std::vector<Tap> xs = taps(w, sw), ys = taps(h, sh);
   std::vector<float> out(static_cast<size_t>(4) * w * h);
   for (int j = 0; j < h; ++j)
   {
-    int j0, j1;
-    float fy;
-    at(j, h, sh, j0, j1, fy);
+    const Tap& y = ys[j];
+    const float* r0 = small.data() + 4 * y.a * sw;
+    const float* r1 = small.data() + 4 * y.b * sw;
+    float* o = out.data() + static_cast<size_t>(4) * (h - 1 - j) * w;
     for (int i = 0; i < w; ++i)
     {
-      int i0, i1;
-      float fx;
-      at(i, w, sw, i0, i1, fx);
-      for (int c = 0; c < 4; ++c)
+      const Tap& x = xs[i];
+      for (size_t c = 0; c < 4; ++c)
       {
-        auto px = [&](int x, int y) { return small[4 * (static_cast<size_t>(y) * sw + x) + c]; };
-        const float top = px(i0, j0) + fx * (px(i1, j0) - px(i0, j0));
-        const float bottom = px(i0, j1) + fx * (px(i1, j1) - px(i0, j1));
-        out[4 * (static_cast<size_t>(j) * w + i) + c] = top + fy * (bottom - top);
+        const float top = r0[4 * x.a + c] + x.f * (r0[4 * x.b + c] - r0[4 * x.a + c]);
+        const float bottom = r1[4 * x.a + c] + x.f * (r1[4 * x.b + c] - r1[4 * x.a + c]);
+        o[4 * i + c] = top + y.f * (bottom - top);
       }
     }
   }
@@ -311,23 +318,15 @@ bool OpaqueGeometryBesides(vtkRenderer* ren, vtkVolume* self)
   return false;
 }
 
-/** Composites a premultiplied RGBA image (rows top first) over the framebuffer's viewport. */
-void Composite(vtkOpenGLRenderWindow* win, const std::vector<float>& rgba, int w, int h, int x0,
-  int y0)
+/** Composites a premultiplied RGBA image (rows bottom first) over the framebuffer's
+ * viewport. */
+void Composite(vtkOpenGLRenderWindow* win, std::vector<float>& rgba, int w, int h, int x0, int y0)
 {
-  // VTK rows start at the bottom.
-  std::vector<float> flipped(rgba.size());
-  for (int j = 0; j < h; ++j)
-  {
-    std::copy(rgba.begin() + static_cast<size_t>(4) * j * w,
-      rgba.begin() + static_cast<size_t>(4) * (j + 1) * w,
-      flipped.begin() + static_cast<size_t>(4) * (h - 1 - j) * w);
-  }
   vtkOpenGLState* state = win->GetState();
   vtkOpenGLState::ScopedglBlendFuncSeparate blendFunc(state);
   vtkOpenGLState::ScopedglEnableDisable blend(state, GL_BLEND);
   state->vtkglBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-  win->SetRGBAPixelData(x0, y0, x0 + w - 1, y0 + h - 1, flipped.data(), 0, 1);
+  win->SetRGBAPixelData(x0, y0, x0 + w - 1, y0 + h - 1, rgba.data(), 0, 1);
 }
 } // namespace
 
@@ -985,7 +984,8 @@ void vtkFluidCastVolumeMapper::Render(vtkRenderer* ren, vtkVolume* vol)
     FLUIDCAST_FAIL(e.what());
     return;
   }
-  Composite(win, Upsample(rgba, sw, sh, w, h), w, h, x0, y0);
+  std::vector<float> shown = UpsampleFlipped(rgba, sw, sh, w, h);
+  Composite(win, shown, w, h, x0, y0);
   const std::chrono::duration<double> took = std::chrono::steady_clock::now() - start;
   this->LastRenderMilliseconds = 1e3 * took.count();
   this->LastImageSampleDistance = s;
