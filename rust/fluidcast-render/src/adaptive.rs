@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use crate::raycast::Compositor;
 use crate::span::{BundleRays, Reach, Reaching, Scatter, SpanDepths, SpanSums, LANES};
+use crate::steps::Steps;
 use crate::{ms, validate, RenderError, RenderParams, RenderStats};
 
 /// Neighbour-count ratio below which a particle counts as a surface particle (see
@@ -232,6 +233,7 @@ struct BundleScratch {
     zs: SpanDepths,
     local: Vec<Reaching>,
     live: Vec<bool>,
+    steps: Steps,
 }
 
 impl BundleScratch {
@@ -243,6 +245,7 @@ impl BundleScratch {
             zs: SpanDepths::default(),
             local: Vec::new(),
             live: vec![false; slots],
+            steps: Steps::default(),
         }
     }
 }
@@ -332,26 +335,29 @@ fn composite(
     rays: &[Ray],
     comps: &mut [Compositor],
     (sums, zs): (&mut SpanSums, &SpanDepths),
+    steps: &mut Steps,
     tf: &TfLookup,
     params: &RenderParams,
 ) {
+    // Every ray's steps first, their opacities corrected in one pass, then each ray's
+    // compositing: what Compositor::sample does sample by sample.
+    steps.clear();
     for (slot, &r) in cast.iter().enumerate() {
-        let (ray, c) = (&rays[slot], &mut comps[r]);
-        for m in sums.touched(slot) {
-            if c.done {
+        let (ray, c) = (&rays[slot], &comps[r]);
+        steps.begin_ray();
+        for m in sums.touched(slot).take_while(|_| !c.done) {
+            let Some(q) = sums.value(m, slot, params.field) else {
+                continue;
+            };
+            if !steps.push(c, tf, q, (zs.z()[m], zs.z()[m + 1]), ray.dlen) {
                 break;
-            }
-            if let Some(q) = sums.value(m, slot, params.field) {
-                c.sample(
-                    tf,
-                    q,
-                    (zs.z()[m], zs.z()[m + 1]),
-                    ray.dlen,
-                    params.min_transmittance,
-                );
             }
         }
         sums.clear(slot);
+    }
+    steps.correct(tf.tf);
+    for (slot, &r) in cast.iter().enumerate() {
+        steps.composite(slot, &mut comps[r], params.min_transmittance);
     }
 }
 
@@ -400,6 +406,7 @@ fn cast_bundle(
             zs,
             local,
             live,
+            steps,
         } = scratch;
         // The span's n samples and the end of the last one's step.
         zs.set((0..=n).map(|m| depths.z[k0 + m * step]));
@@ -429,7 +436,7 @@ fn cast_bundle(
             kernel: params.kernel,
             field: params.field,
         });
-        composite(&cast, &rays, &mut comps, (sums, zs), tf, params);
+        composite(&cast, &rays, &mut comps, (sums, zs), steps, tf, params);
     }
     let samples = comps.iter().map(|c| c.samples).sum();
     let pixels = cast.iter().map(|&r| {

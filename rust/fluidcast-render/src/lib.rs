@@ -31,6 +31,7 @@ mod raycast;
 mod rbf;
 mod reference;
 mod span;
+mod steps;
 mod surface;
 mod tiles;
 
