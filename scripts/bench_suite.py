@@ -9,7 +9,7 @@ apart: a gain only on the first half is not a gain) with each half's largest los
 
 `--whole` times whole `fluidcast render` processes instead (what a user waits for: reading,
 the surface flags and the plan included), best of 2, off and the default, and with `--before`
-the default of another build too (new against old in one run).
+another build's off and default too, and its own ratio (new against old in one run).
 
 SUITE.json lists the scenes, none of them committed (docs/performance.md says how each was
 made):
@@ -55,7 +55,9 @@ def bench(exe: str, scene: dict, size: str, views: int, limit: bool) -> dict:
 
 def whole(exe: str, before: str | None, scene: dict, size: str) -> dict:
     """Whole `fluidcast render` processes of `scene` at `size`: off and the default, best of 2
-    each (and the default of `before`), in milliseconds."""
+    each, in milliseconds; with `before`, that build's off and default too, and its own ratio
+    (its full rate over its default: a ratio as it was, not this build's full rate over the
+    old default)."""
     def best(binary: str, tolerance: str) -> float:
         times = []
         with tempfile.TemporaryDirectory() as d:
@@ -73,8 +75,9 @@ def whole(exe: str, before: str | None, scene: dict, size: str) -> dict:
            "timed": "whole processes",
            "off_ms": off, "default_ms": default, "ratio": off / default}
     if before:
+        out["before_off_ms"] = best(before, "off")
         out["before_ms"] = best(before, "0.004")
-        out["before_ratio"] = off / out["before_ms"]
+        out["before_ratio"] = out["before_off_ms"] / out["before_ms"]
     return out
 
 
@@ -85,10 +88,11 @@ def table(results: list[dict], half: str) -> None:
     print(f"\n{half} scenes: full rate / default, {rows[0]['timed']} (>1: the default is "
           "faster)")
     print(f"{'scene':<28} {'size':>10} {'particles':>10} {'off ms':>9} {'default ms':>11} "
-          f"{'ratio':>7}" + ("  before ms (ratio)" if "before_ms" in rows[0] else ""))
+          f"{'ratio':>7}" + ("  before: off, default ms (ratio)" if "before_ms" in rows[0]
+                             else ""))
     for r in rows:
-        before = (f"  {r['before_ms']:9.1f} ({r['before_ratio']:.2f})" if "before_ms" in r
-                  else "")
+        before = (f"  {r['before_off_ms']:9.1f} {r['before_ms']:9.1f} ({r['before_ratio']:.2f})"
+                  if "before_ms" in r else "")
         print(f"{r['scene']:<28} {r['size']:>10} {str(r['particles'] or '-'):>10} "
               f"{r['off_ms']:>9.1f} {r['default_ms']:>11.1f} {r['ratio']:>7.2f}{before}")
     worst = min(rows, key=lambda r: r["ratio"])
