@@ -345,7 +345,9 @@ fn composite(
     for (slot, &r) in cast.iter().enumerate() {
         let (ray, c) = (&rays[slot], &comps[r]);
         steps.begin_ray();
-        for m in sums.touched(slot).take_while(|_| !c.done) {
+        // A ray done in an earlier span takes no steps.
+        let touched = if c.done { 0..0 } else { sums.touched(slot) };
+        for m in touched {
             let Some(q) = sums.value(m, slot, params.field) else {
                 continue;
             };

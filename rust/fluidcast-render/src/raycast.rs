@@ -125,6 +125,17 @@ impl Along {
     }
 }
 
+/// What a ray makes of a sample's step ([`Compositor::step`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Step {
+    /// The step starts at or beyond the ray's limit: the ray is done.
+    Done,
+    /// The step lies wholly in front of the ray's start: not a sample of this ray.
+    Before,
+    /// The step to composite, from view depth `.0` to `.1`, cut at the limit.
+    Kept((f64, f64)),
+}
+
 /// Front-to-back compositing state of one ray: premultiplied colour, transmittance and the
 /// depth where opacity first exceeded ½. Only the part of the ray between view depths `near`
 /// (the start of a cropping region) and `limit` (an opaque surface, or the region's end) is
@@ -182,30 +193,47 @@ impl Compositor {
         &mut self,
         tf: &TfLookup,
         q: f64,
-        (z0, z1): (f64, f64),
+        z: (f64, f64),
         dlen: f64,
         min_t: f64,
         light: impl FnOnce([f64; 3]) -> [f64; 3],
     ) {
-        if z0 >= self.limit {
-            self.done = true;
-            return;
-        }
-        if z1 <= self.near {
-            return; // wholly in front of the ray's start: not a sample of this ray
-        }
+        let (z0, z1) = match self.step(z) {
+            Step::Done => {
+                self.done = true;
+                return;
+            }
+            Step::Before => return,
+            Step::Kept(z) => z,
+        };
         let (rgb, alpha) = tf.eval(q);
-        // The step is cut at the limit here, so `add` must see it ending there (not cut again);
-        // `add` cuts its front at `near`, which for one homogeneous step is the same.
-        let z1 = z1.min(self.limit);
         let a = tf.tf.step_alpha(alpha, (z1 - z0) * dlen);
-        self.samples += 1;
         let rgb = if a > 0.0 { light(rgb) } else { rgb };
-        self.add(
-            [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
-            (z0, z1),
-            min_t,
-        );
+        self.composite_step(rgb, a, (z0, z1), min_t);
+    }
+
+    /// What this ray makes of a sample's step from view depth `z0` to `z1`: the ray is done at
+    /// a step that starts at or beyond its limit; a step wholly in front of its start is not
+    /// a sample of it; any other is kept, cut at the limit. (Cut here, so that `add` sees it
+    /// ending there and does not cut it again; `add` cuts its front at `near`, which for one
+    /// homogeneous step is the same.)
+    #[inline]
+    pub fn step(&self, (z0, z1): (f64, f64)) -> Step {
+        if z0 >= self.limit {
+            Step::Done
+        } else if z1 <= self.near {
+            Step::Before
+        } else {
+            Step::Kept((z0, z1.min(self.limit)))
+        }
+    }
+
+    /// Composites a sample of colour `rgb` and opacity `a` (already corrected for its length)
+    /// over the step `z` that [`Compositor::step`] kept.
+    #[inline]
+    pub fn composite_step(&mut self, rgb: [f64; 3], a: f64, z: (f64, f64), min_t: f64) {
+        self.samples += 1;
+        self.add([a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a], z, min_t);
     }
 
     /// Composites a premultiplied (I rgb, T) segment from view depth `z0` to `z1`. Outside

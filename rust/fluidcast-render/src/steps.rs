@@ -10,7 +10,7 @@
 
 use fluidcast_view::{TfLookup, TransferFunction};
 
-use crate::raycast::Compositor;
+use crate::raycast::{Compositor, Step};
 
 /// One ray's steps of a span, in [`Steps`]: `range` indexes the gathered arrays; `limit`:
 /// the ray reached its limit (opaque geometry, a cropping box) at the step after them.
@@ -61,20 +61,20 @@ impl Steps {
         c: &Compositor,
         tf: &TfLookup,
         q: f64,
-        (z0, z1): (f64, f64),
+        z: (f64, f64),
         dlen: f64,
     ) -> bool {
-        if z0 >= c.limit {
-            if let Some(ray) = self.rays.last_mut() {
-                ray.limit = true;
+        let (z0, z1) = match c.step(z) {
+            Step::Done => {
+                if let Some(ray) = self.rays.last_mut() {
+                    ray.limit = true;
+                }
+                return false;
             }
-            return false;
-        }
-        if z1 <= c.near {
-            return true;
-        }
+            Step::Before => return true,
+            Step::Kept(z) => z,
+        };
         let (rgb, alpha) = tf.eval(q);
-        let z1 = z1.min(c.limit);
         self.rgb.push(rgb);
         self.alpha.push(alpha);
         self.len.push((z1 - z0) * dlen);
@@ -102,13 +102,7 @@ impl Steps {
             if c.done {
                 return;
             }
-            let (a, rgb) = (self.len[k], self.rgb[k]);
-            c.samples += 1;
-            c.add(
-                [a * rgb[0], a * rgb[1], a * rgb[2], 1.0 - a],
-                self.z[k],
-                min_t,
-            );
+            c.composite_step(self.rgb[k], self.len[k], self.z[k], min_t);
         }
         if ray.limit {
             c.done = true;
