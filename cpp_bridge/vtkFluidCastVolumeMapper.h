@@ -396,8 +396,9 @@ public:
    * frames of different sizes; per ray alone after the first frame), and interpolates the image
    * bilinearly. Where no distance fits, the finest one predicted within a fifth of the
    * MaximumImageSampleDistance's time: past it coarser rays would blur the image for next to
-   * no speed, the grid and the plan taking most of the frame. Still renders (allocated seconds to minutes) get full resolution. Off: every
-   * frame uses ImageSampleDistance. Distances are whole pixels.
+   * no speed, the grid and the plan taking most of the frame. Still renders (allocated
+   * seconds to minutes) get full resolution. Off: every frame uses ImageSampleDistance.
+   * Distances are whole pixels.
    */
   vtkSetMacro(AutoAdjustSampleDistances, vtkTypeBool);
   vtkGetMacro(AutoAdjustSampleDistances, vtkTypeBool);

@@ -712,14 +712,14 @@ impl PerspectiveGrid {
             dz,
             bundles_x: bx,
         };
-        // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle, the
-        // particles in chunks counted in parallel: each chunk writes its pairs from its own
-        // start in each bundle, so the pairs lie in particle order as a sequential pass puts
-        // them.
         // Each particle's stored pixel rectangle and footprint, from one projection.
         let (rects, feet): (Vec<[u16; 4]>, Vec<Foot>) =
             grid.particles.par_iter().map(|p| fp.place(p)).unzip();
         grid.rects = rects;
+        // Counting sort of the (bundle, cell, merge bit, particle) pairs by bundle, the
+        // particles in chunks counted in parallel: each chunk writes its pairs from its own
+        // start in each bundle, so the pairs lie in particle order as a sequential pass puts
+        // them.
         let n = grid.particles.len();
         let chunk_len = n.div_ceil(chunk_count(n, nb)).max(1);
         let (counts, visible) = fp.count(&feet, chunk_len, nb);
