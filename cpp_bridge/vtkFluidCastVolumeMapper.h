@@ -393,8 +393,8 @@ public:
    * the camera moves): it casts one ray per ImageSampleDistance × ImageSampleDistance pixels,
    * the smallest distance in [MinimumImageSampleDistance, MaximumImageSampleDistance] whose
    * predicted time fits (a fixed part plus a part per ray, the line through the last two
-   * frames of different sizes; per ray alone after the first frame), and interpolates the image
-   * bilinearly. Where no distance fits, the finest one predicted within a fifth of the
+   * frames of different sizes; per ray alone after the first frame), and the GPU stretches the
+   * image over the viewport, interpolating bilinearly. Where no distance fits, the finest one predicted within a fifth of the
    * MaximumImageSampleDistance's time: past it coarser rays would blur the image for next to
    * no speed, the grid and the plan taking most of the frame. Still renders (allocated
    * seconds to minutes) get full resolution. Off: every frame uses ImageSampleDistance.
@@ -482,7 +482,8 @@ public:
   void GetBounds(double bounds[6]) override { this->Superclass::GetBounds(bounds); }
 
   void Render(vtkRenderer* ren, vtkVolume* vol) override;
-  void ReleaseGraphicsResources(vtkWindow*) override {}
+  /** Releases the texture that shows the rendered image in `win`. */
+  void ReleaseGraphicsResources(vtkWindow* win) override;
 
 protected:
   vtkFluidCastVolumeMapper();
