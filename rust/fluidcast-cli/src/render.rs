@@ -330,7 +330,7 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
         .map(|(k, v)| (format!("{k}_ms"), json!(v)))
         .collect();
     let mut v = json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
-           "samples": s.samples, "tiles": s.tiles, "culled": s.culled, "interpolated": s.interpolated, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
+           "samples": s.samples, "tiles": s.tiles, "culled": s.culled, "interpolated": s.interpolated, "dispatches": s.dispatches, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
            "image": {"width": s.width, "height": s.height}});
     // The process' peak resident memory so far (all frames up to this one).
     if let Some(b) = fluidcast_mem::peak_resident() {

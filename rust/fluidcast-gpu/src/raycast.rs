@@ -89,7 +89,42 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
     up
 }
 
+/// `resume[1 + b]` before bundle b's first dispatch (raycast.wgsl's RESUME_FRESH).
+const RESUME_FRESH: u32 = u32::MAX;
+
+/// Most dispatches of the ray caster in one pass: each dispatch casts at least one more span
+/// of every bundle it stops, so a pass takes at most as many as a bundle has spans.
+const MAX_DISPATCHES: u32 = 1 << 16;
+
 impl Gpu {
+    /// Dispatches the ray caster until no bundle stopped at the loop limit: on hardware
+    /// (no limit) once; on a software driver, again while any bundle stopped before a span,
+    /// so that no invocation runs more loop iterations than the driver allows, whatever the
+    /// scene (raycast.wgsl's `resume`). Returns the dispatches.
+    fn cast_until_done(
+        &self,
+        timer: &mut Timer,
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: (u32, u32),
+        resume: &wgpu::Buffer,
+    ) -> Result<u64, GpuError> {
+        for n in 1..=u64::from(MAX_DISPATCHES) {
+            self.submit_pass(timer, "gpu_raycast", |pass| {
+                self.dispatch_2d(pass, &self.pipes.raycast, binds, groups)
+            })?;
+            if !self.is_software() {
+                return Ok(n);
+            }
+            let stopped = self.fetch_with(&[(resume, 4)], |got| cast::<u32>(got[0])[0])?;
+            if stopped == 0 {
+                return Ok(n);
+            }
+            self.queue
+                .write_buffer(resume, 0, bytemuck::bytes_of(&0u32));
+        }
+        Err(self.loop_limit_error("the ray casting (too many dispatches)"))
+    }
+
     /// Casts the rays of a grid and plan built on the CPU ([`fluidcast_render::plan_adaptive`]):
     /// the ray casting stage alone, to test it against the CPU's caster on the same input.
     pub fn render_planned(
@@ -181,6 +216,17 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
+        // A bundle's rays keep their compositing state between dispatches (two vec4 each)
+        // only where a loop limit can stop them (see raycast.wgsl's `resume`).
+        let state_bytes = if self.is_software() {
+            2 * 16 * 64 * bundles
+        } else {
+            16
+        };
+        let state = self.buffer("ray state", state_bytes, RW, None);
+        let mut fresh = vec![RESUME_FRESH; bundles as usize + 1];
+        fresh[0] = 0;
+        let resume = self.upload("resume", &fresh);
         let binds = [
             ("P", b.frame),
             ("tf", b.tf),
@@ -196,10 +242,10 @@ impl Gpu {
             ("out_samples", &samples),
             ("depth_limit", &limit),
             ("guard", b.guard),
+            ("ray_state", &state),
+            ("resume", &resume),
         ];
-        self.submit_pass(timer, "gpu_raycast", |pass| {
-            self.dispatch_2d(pass, &self.pipes.raycast, &binds, groups)
-        })?;
+        stats.dispatches += self.cast_until_done(timer, &binds, groups, &resume)?;
         let parts = [
             (&rgba, 16 * n_px),
             (&depth, 4 * n_px),

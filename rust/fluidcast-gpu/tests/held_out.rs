@@ -246,3 +246,70 @@ fn dense_cells_match_or_are_refused_on_software_drivers() {
         }
     }
 }
+
+/// `clumps` balls of `n` particles each (as [`clump`]'s), one behind the other along the view
+/// axis 0.3 world units apart.
+fn column_of_clumps(clumps: usize, n: usize) -> Particles {
+    let mut p = Particles::default();
+    for c in 0..clumps {
+        let mut one = clump(n);
+        for q in &mut one.positions {
+            q[2] -= 0.3 * c as f32;
+        }
+        p.positions.extend(one.positions);
+        p.radii.extend(one.radii);
+        p.volumes.extend(one.volumes);
+        p.masses.extend(one.masses);
+        p.values.extend(one.values);
+    }
+    p
+}
+
+/// A bundle whose spans together need more loop iterations than a software driver lets one
+/// invocation run, each span fitting: the ray caster stops before a span and the next
+/// dispatch resumes there, so the column renders as on the CPU (colour, depth at half
+/// opacity, samples) instead of being refused. (On a hardware GPU one dispatch does it.)
+#[test]
+fn bundles_past_the_loop_limit_resume_in_later_dispatches() {
+    let Some(g) = gpu() else { return };
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(0.0, 1.0)
+        .unwrap();
+    tf.unit_distance = 1.0;
+    let cam = Camera {
+        position: [0.0, 0.0, 0.6],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let prm = RenderParams {
+        width: 8,
+        height: 8,
+        adaptive: modes()[0].1,
+        ..Default::default()
+    };
+    // 16 clumps of 1500 particles, a span each.
+    let p = column_of_clumps(16, 1500);
+    let cpu = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let gpu = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    // The middle rays pass half opacity at the fifth or sixth clump (before the last
+    // dispatch) and are still partly transparent behind the last one.
+    let mid = [27, 28, 35, 36].map(|k| (cpu.image.rgba[k][3], cpu.image.depth[k]));
+    assert!(
+        mid.iter()
+            .all(|&(a, z)| a > 0.5 && a < 0.95 && z > 1.5 && z < 2.5),
+        "opacities and depths at half opacity {mid:?}"
+    );
+    let (c, _) = fluidcast_image::compare(&cpu.image, &gpu.image, 1e-3).unwrap();
+    assert!(c.max_abs <= 1e-3, "max abs {}", c.max_abs);
+    assert!(c.depth_max_abs <= 1e-3, "depth max abs {}", c.depth_max_abs);
+    assert_eq!(cpu.stats.samples, gpu.stats.samples);
+    // The column's one bundle needs more iterations than three dispatches' worth of lavapipe's
+    // limit (it took 3), and one on hardware.
+    let n = gpu.stats.dispatches;
+    assert!(
+        if g.is_software() { n >= 3 } else { n == 1 },
+        "{n} ray casting dispatches"
+    );
+}

@@ -338,6 +338,9 @@ pub struct RenderStats {
     /// Grid renderer, relaxed mode: pixels filled by interpolation instead of cast
     /// ([`interpolate`]).
     pub interpolated: u64,
+    /// GPU backend: dispatches of the ray casting stage, one per pass on hardware; more where
+    /// a software driver's loop limit made bundles stop and resume (see docs/gpu.md).
+    pub dispatches: u64,
 }
 
 impl RenderStats {

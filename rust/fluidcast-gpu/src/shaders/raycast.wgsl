@@ -17,9 +17,19 @@
 @group(0) @binding(13) var<storage, read> depth_limit: array<f32>;
 // [0]: 1 when an invocation passed P.loop_limit (see `tick` in common.wgsl).
 @group(0) @binding(14) var<storage, read_write> guard: array<atomic<u32>>;
+// A bundle whose spans would pass P.loop_limit in one invocation (a software driver's limit)
+// stops before a span and resumes there in the host's next dispatch of this stage, the image
+// unchanged: its rays' compositing state at ray_state[2 (64 b + li)] (colour, T) and
+// (depth at half opacity, samples as bits, done, 0); resume[1 + b] the span to resume at
+// (RESUME_FRESH before the first dispatch, RESUME_DONE once the bundle's pixels are written);
+// resume[0] the bundles that stopped in this dispatch.
+@group(0) @binding(15) var<storage, read_write> ray_state: array<vec4<f32>>;
+@group(0) @binding(16) var<storage, read_write> resume: array<atomic<u32>>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
+const RESUME_FRESH: u32 = 0xffffffffu;
+const RESUME_DONE: u32 = 0xfffffffeu;
 
 var<workgroup> cache_a: array<vec4<f32>, 64>;
 var<workgroup> cache_b: array<vec4<f32>, 64>;
@@ -32,6 +42,7 @@ var<workgroup> span_z: array<f32, 65>;
 var<workgroup> wg_samples: atomic<u32>;
 var<workgroup> all_done: atomic<u32>;
 var<workgroup> done_flag: u32;
+var<workgroup> wg_resume: u32;
 
 /// The t-th particle reference of a span: the merged cells' references, each particle once
 /// (a cell's references with the merge bit set are repeated by the next cell).
@@ -58,6 +69,18 @@ fn span_refs(first: u32, count: u32) -> u32 {
         n = n + select(c.unique_end, c.end, i + 1u == count) - c.start;
     }
     return n;
+}
+
+/// Loop iterations that sampled span `span` with `ref_count` particle references costs an
+/// invocation at most, as `main` ticks them (the initial sums, span_refs, per chunk its loads
+/// and loop, per particle its samples, the compositing), plus what the loop guard reserves
+/// before a chunk for the rest of the span: an upper bound that every invocation of the
+/// workgroup computes alike, so that all stop before the same span.
+fn span_cost(span: Span, ref_count: u32) -> u32 {
+    let n = span.n;
+    let chunks = (ref_count + CHUNK - 1u) / CHUNK;
+    return (n + 1u) + (span.count + 2u) + ref_count * (n + 2u) + chunks * (span.count + 3u)
+        + (n + 1u) + (n + span.count + 16u);
 }
 
 /// How many of the span's first n (<= 64) samples, at span_z[m], lie below z (or at or below
@@ -128,11 +151,32 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let is_density = P.field == FIELD_DENSITY;
 
     var guarded = false;
-    let s0 = bundle_cells[b];
-    let s1 = s0 + span_count[b];
+    let s1 = bundle_cells[b] + span_count[b];
+    // Where this dispatch starts: the first span, or where an earlier dispatch stopped.
+    if (li == 0u) {
+        wg_resume = atomicLoad(&resume[1u + b]);
+    }
+    let resume_at = workgroupUniformLoad(&wg_resume);
+    if (resume_at == RESUME_DONE) {
+        return;
+    }
+    var s0 = bundle_cells[b];
+    let st = 2u * (b * 64u + li);
+    if (resume_at != RESUME_FRESH) {
+        s0 = resume_at;
+        let a = ray_state[st];
+        let c = ray_state[st + 1u];
+        color = a.xyz;
+        trans = a.w;
+        depth_half = c.x;
+        samples = bitcast<u32>(c.y);
+        done = c.z != 0.0;
+    }
     tick(1u);
+    var budget = 1u; // the ticks of the spans begun, bounded alike in every invocation
     for (var s = s0; s < s1; s = s + 1u) {
         tick(1u);
+        budget = budget + 1u;
         if (li == 0u) {
             atomicStore(&all_done, 0u);
         }
@@ -149,6 +193,26 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             break;
         }
         let span = spans[s];
+        var ref_count = 0u;
+        if (span.superpixel == 0u) {
+            ref_count = span_refs(span.first, span.count);
+            let cost = span_cost(span, ref_count);
+            if (s > s0 && budget + cost > P.loop_limit) {
+                // Stop before this span; the next dispatch resumes here.
+                ray_state[st] = vec4<f32>(color, trans);
+                ray_state[st + 1u] = vec4<f32>(depth_half, bitcast<f32>(samples),
+                                               select(0.0, 1.0, done), 0.0);
+                if (li == 0u) {
+                    atomicStore(&resume[1u + b], s);
+                    atomicAdd(&resume[0], 1u);
+                }
+                if (guarded) {
+                    atomicOr(&guard[0], 1u);
+                }
+                return;
+            }
+            budget = budget + cost;
+        }
         if (span.superpixel == 1u) {
             if (!done) {
                 let z0 = depths[span.k0];
@@ -193,7 +257,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             weighted[m] = 0.0;
             shepard[m] = 0.0;
         }
-        let ref_count = span_refs(span.first, span.count);
         tick(1u);
         for (var c0 = 0u; c0 < ref_count; c0 = c0 + CHUNK) {
             tick(2u); // this loop and the exit of the k loop
@@ -304,5 +367,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     workgroupBarrier();
     if (li == 0u) {
         out_samples[b] = atomicLoad(&wg_samples);
+        atomicStore(&resume[1u + b], RESUME_DONE);
     }
 }
