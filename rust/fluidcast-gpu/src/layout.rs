@@ -221,7 +221,8 @@ pub(crate) struct RbfUniform {
     pub(crate) seed: u32,
     pub(crate) colouring: u32,
     pub(crate) noise: u32,
-    pub(crate) query_bound: u32,
+    /// Dispatches of this render before this one (rbf.wgsl's `resume`).
+    pub(crate) round: u32,
     pub(crate) shadows: u32,
     pub(crate) shadow_samples: u32,
     pub(crate) light: [f32; 4],
@@ -455,7 +456,7 @@ mod tests {
                 seed,
                 colouring,
                 noise,
-                query_bound,
+                round,
                 shadows,
                 shadow_samples,
                 light,

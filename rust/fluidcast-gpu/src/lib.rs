@@ -169,8 +169,10 @@ pub struct Gpu {
     /// Largest storage buffer binding (bytes).
     max_binding: u64,
     /// Loop iterations a shader invocation may run (`SOFTWARE_LOOP_LIMIT` on CPU adapters,
-    /// unlimited on hardware).
+    /// unlimited on hardware unless [`Gpu::with_loop_limit`] bounds it).
     loop_limit: u32,
+    /// A CPU adapter (Mesa's lavapipe or llvmpipe).
+    software: bool,
 }
 
 /// Most control points per transfer function table (colour, opacity) the shaders search
@@ -242,13 +244,44 @@ impl Gpu {
             } else {
                 u32::MAX
             },
+            software: info.device_type == wgpu::DeviceType::Cpu,
         })
     }
 
     /// True on a software driver (a CPU adapter: Mesa's lavapipe or llvmpipe), whose loop limit
     /// the shaders guard (see `GpuError::LoopLimit`).
     pub fn is_software(&self) -> bool {
+        self.software
+    }
+
+    /// This GPU with at most `iterations` loop iterations per shader invocation (never more
+    /// than a software driver allows): the ray casters then split their work into more
+    /// dispatches, each invocation's bounded, so that no dispatch runs long (a desktop driver
+    /// resets a GPU whose dispatch runs for seconds). The image is the same.
+    pub fn with_loop_limit(mut self, iterations: u32) -> Gpu {
+        self.loop_limit = self.loop_limit.min(iterations);
+        self
+    }
+
+    /// True where a loop limit bounds the invocations (software drivers, `with_loop_limit`):
+    /// work that may stop and resume keeps its state between dispatches.
+    fn bounded(&self) -> bool {
         self.loop_limit != u32::MAX
+    }
+
+    /// The loop budget of one invocation of a shader whose invocations loop independently
+    /// (the RBF march: each pixel its own number of samples and queries). Mesa's gallivm runs
+    /// invocations side by side in the lanes of a vector and counts a loop's iterations while
+    /// any lane runs it, so a batch of lanes counts up to the sum of its lanes' iterations: each
+    /// lane gets the limit over the lanes (8 for the "256 bits" in llvmpipe's adapter name,
+    /// 16 where the name says nothing). With the whole limit per lane, lavapipe silently cut
+    /// shadow rays of a 3000-particle cloud (tests/rbf.rs). Uniform loops (the bundle ray
+    /// caster, whose invocations share their bounds) keep the whole limit.
+    fn divergent_loop_limit(&self) -> u32 {
+        if !self.bounded() {
+            return u32::MAX;
+        }
+        self.loop_limit / simd_lanes(&self.adapter)
     }
 
     /// True when the adapter reports GPU-side timings (timestamp queries): stages named
@@ -378,5 +411,30 @@ fn push_stage(stats: &mut RenderStats, name: &'static str, ms: f64) {
     match stats.stages.iter_mut().find(|s| s.0 == name) {
         Some(s) => s.1 += ms,
         None => stats.stages.push((name, ms)),
+    }
+}
+
+/// f32 lanes of a software driver's vectors, from its adapter name ("llvmpipe (LLVM 15.0.6,
+/// 256 bits)": 8); 16 (512 bits) where the name gives none.
+fn simd_lanes(adapter: &str) -> u32 {
+    adapter
+        .split(['(', ',', ')'])
+        .find_map(|part| part.trim().strip_suffix(" bits")?.parse::<u32>().ok())
+        .map_or(16, |bits| (bits / 32).clamp(1, 64))
+}
+
+#[cfg(test)]
+mod lanes_tests {
+    use super::simd_lanes;
+
+    #[test]
+    fn lanes_from_the_adapter_name() {
+        assert_eq!(
+            simd_lanes("llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, software)"),
+            8
+        );
+        assert_eq!(simd_lanes("llvmpipe (LLVM 17.0.0, 512 bits)"), 16);
+        assert_eq!(simd_lanes("llvmpipe (LLVM 15.0.6, 128 bits)"), 4);
+        assert_eq!(simd_lanes("some software adapter"), 16);
     }
 }

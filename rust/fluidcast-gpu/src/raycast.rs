@@ -112,7 +112,7 @@ impl Gpu {
             self.submit_pass(timer, "gpu_raycast", |pass| {
                 self.dispatch_2d(pass, &self.pipes.raycast, binds, groups)
             })?;
-            if !self.is_software() {
+            if !self.bounded() {
                 return Ok(n);
             }
             let stopped = self.fetch_with(&[(resume, 4)], |got| cast::<u32>(got[0])[0])?;
@@ -218,7 +218,7 @@ impl Gpu {
         let samples = self.buffer("samples", 4 * bundles, RW, None);
         // A bundle's rays keep their compositing state between dispatches (two vec4 each)
         // only where a loop limit can stop them (see raycast.wgsl's `resume`).
-        let state_bytes = if self.is_software() {
+        let state_bytes = if self.bounded() {
             2 * 16 * 64 * bundles
         } else {
             16

@@ -73,9 +73,7 @@ fn rbf_uniform(field: &RbfField, rbf: &RbfRenderParams, step: f64) -> RbfUniform
         seed: rbf.seed,
         colouring: colouring_code(field.colouring()),
         noise: noise_code(rbf.noise),
-        // Every node and every particle, and each loop's exit: the most one point query
-        // can take (see `field_at`).
-        query_bound: (bvh.boxes().len() + 2 * n + 2).min(u32::MAX as usize / 4) as u32,
+        round: 0,
         shadows: u32::from(rbf.shadows.is_some()),
         shadow_samples: rbf.shadows.as_ref().map_or(1, |s| s.samples),
         light: rbf.shadows.as_ref().map_or([0.0; 4], |s| {
@@ -109,7 +107,47 @@ fn field_arrays(field: &RbfField) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
     (boxes, attrs)
 }
 
+/// vec4s a pixel's work in progress takes (rbf.wgsl's RESUME_VEC4S).
+const RESUME_VEC4S: u64 = 6;
+
+/// Most dispatches of one RBF render: each dispatch runs at least one more point query of
+/// every pixel it stops, unless none fits the limit, which the guard refuses.
+const MAX_DISPATCHES: u32 = 1 << 20;
+
 impl Gpu {
+    /// Dispatches the RBF march until no pixel stopped at the loop limit (once on hardware),
+    /// rewriting the uniform's `round` before each dispatch after the first. Returns the
+    /// dispatches; stops early when the guard is set (a query alone passes the limit).
+    fn march_until_done(
+        &self,
+        timer: &mut crate::pass::Timer,
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: (u32, u32),
+        (uniform, mut u): (&wgpu::Buffer, RbfUniform),
+        (stopped, guard): (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> Result<u64, GpuError> {
+        for n in 1..=u64::from(MAX_DISPATCHES) {
+            self.submit_pass(timer, "gpu_raycast", |pass| {
+                self.dispatch_2d(pass, &self.pipes.rbf, binds, groups)
+            })?;
+            if !self.bounded() {
+                return Ok(n);
+            }
+            let parts = [(stopped, 4), (guard, 4)];
+            let (left, refused) = self.fetch_with(&parts, |got| {
+                (cast::<u32>(got[0])[0], cast::<u32>(got[1])[0])
+            })?;
+            if left == 0 || refused != 0 {
+                return Ok(n);
+            }
+            self.queue
+                .write_buffer(stopped, 0, bytemuck::bytes_of(&0u32));
+            u.round = n as u32;
+            self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&u));
+        }
+        Err(self.loop_limit_error("the RBF march (too many dispatches)"))
+    }
+
     /// Reads the march's image (premultiplied RGBA, depth: empty pixels at infinity) back
     /// into `image`; true when a shader invocation hit the loop guard.
     fn read_image(
@@ -161,7 +199,7 @@ impl Gpu {
         let n = bvh.len();
         let u = rbf_uniform(field, rbf, step);
         let (boxes, attrs) = field_arrays(field);
-        let fu = frame_uniform(&frame, params, tf, n, self.loop_limit);
+        let fu = frame_uniform(&frame, params, tf, n, self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
         let rbf_buf = self.buffer(
             "rbf",
@@ -178,6 +216,15 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let guard = self.upload("guard", &[0u32; 4]);
+        // A pixel keeps its work between dispatches (rbf.wgsl's RESUME_VEC4S vec4s) only
+        // where a loop limit can stop it.
+        let resume_bytes = if self.bounded() {
+            16 * RESUME_VEC4S * n_px
+        } else {
+            16
+        };
+        let resume = self.buffer("rbf resume", resume_bytes, RW, None);
+        let stopped = self.upload("rbf stopped", &[0u32; 4]);
         push_stage(&mut stats, "upload", ms(t0));
         let binds = [
             ("P", &frame_buf),
@@ -190,17 +237,15 @@ impl Gpu {
             ("image", &rgba),
             ("depth", &depth),
             ("guard", &guard),
+            ("resume", &resume),
+            ("stopped", &stopped),
         ];
         let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
         let t = Instant::now();
-        self.submit_pass(&mut timer, "gpu_raycast", |pass| {
-            self.dispatch_2d(
-                pass,
-                &self.pipes.rbf,
-                &binds,
-                (w.div_ceil(8), h.div_ceil(8)),
-            )
-        })?;
+        let groups = (w.div_ceil(8), h.div_ceil(8));
+        let flags = (&stopped, &guard);
+        stats.dispatches =
+            self.march_until_done(&mut timer, &binds, groups, (&rbf_buf, u), flags)?;
         let guarded = self.read_image((&rgba, &depth, &guard), &mut image)?;
         push_stage(&mut stats, "raycast", ms(t));
         if guarded {

@@ -17,7 +17,7 @@ struct Rbf {
     seed: u32,
     colouring: u32,       // RBF_POST, RBF_PRE or RBF_DENSITY
     noise: u32,           // NOISE_BLUE or NOISE_WHITE
-    query_bound: u32,     // loop iterations one point query may take at most (its exits too)
+    round: u32,           // dispatches of this render before this one (see `resume`)
     shadows: u32,         // 1: single scattering with shadows
     shadow_samples: u32,
     light: vec4<f32>,     // toward the light (unit, world)
@@ -41,6 +41,34 @@ struct Rbf {
 @group(0) @binding(8) var<storage, read_write> depth: array<f32>;
 // [0]: set when a pixel stopped at the loop limit (the host refuses the frame).
 @group(0) @binding(9) var<storage, read_write> guard: array<atomic<u32>>;
+// A pixel whose queries would pass P.loop_limit (a software driver's limit) in one invocation
+// stops before the query and resumes there in the host's next dispatch (R.round > 0), the
+// image unchanged: its work (see `Work`) at resume[RESUME_VEC4S px ..]; stopped[0] the pixels
+// that stopped in this dispatch.
+@group(0) @binding(10) var<storage, read_write> resume: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> stopped: array<atomic<u32>>;
+
+const RESUME_VEC4S: u32 = 6u;
+// What a pixel does next: its pass's march, the march to the shade point, a shadow ray; done.
+const PH_MARCH: u32 = 0u;
+const PH_PICK: u32 = 1u;
+const PH_SHADOW: u32 = 2u;
+const PH_DONE: u32 = 3u;
+
+// Set when a point query stopped because the loop budget ran out (its sum is then unused).
+var<private> out_of_budget: bool = false;
+// Point queries completed by this invocation.
+var<private> queries_done: u32 = 0u;
+
+/// One more loop iteration, or false (and out_of_budget) when the invocation has none left.
+fn take_iteration() -> bool {
+    if (over_budget(1u)) {
+        out_of_budget = true;
+        return false;
+    }
+    tick(1u);
+    return true;
+}
 
 fn mix32(x0: u32) -> u32 {
     var x = x0;
@@ -75,24 +103,34 @@ fn offset(i: u32, j: u32, pass_index: u32, stream: u32) -> f32 {
     return blue_offset(i, j, pass_index, R.seed ^ stream);
 }
 
-/// Phi (x) and the sums of phi theta (yzw) at x: the Gaussians of the particles whose
-/// spheres hold x, found by a depth-first walk of the boxes that hold it. Its loops are not
-/// counted one by one: on a software driver the loop limit counts a SIMD batch's iterations,
-/// which lanes walking different paths do not bound; the callers charge every query the
-/// most any query can take (R.query_bound), the same for every lane, before they run it.
+/// The field's sums at `x`: (Σ φ, Σ φ θ) over the spheres that hold it, a BVH point query.
+/// Every loop iteration (and each loop's exit) is taken from the invocation's budget; where
+/// it runs out the query stops with out_of_budget set, to be run again in the next dispatch.
 fn field_at(x: vec3<f32>) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     var stack: array<u32, 40>;
     var top = 0u;
     var node = 1u;
+    if (!take_iteration()) { // the loop's exit
+        return acc;
+    }
     loop {
+        if (!take_iteration()) {
+            return acc;
+        }
         let lo = boxes[2u * node].xyz;
         let hi = boxes[2u * node + 1u].xyz;
         if (all(x >= lo) && all(x <= hi)) {
             if (node >= R.first_leaf) {
                 let first = (node - R.first_leaf) * R.leaf_size;
                 let last = min(first + R.leaf_size, R.n_slots);
+                if (!take_iteration()) { // the leaf loop's exit
+                    return acc;
+                }
                 for (var s = first; s < last; s = s + 1u) {
+                    if (!take_iteration()) {
+                        return acc;
+                    }
                     let sp = spheres[s];
                     let d = distance(x, sp.xyz);
                     if (sp.w > 0.0 && d <= sp.w) {
@@ -115,10 +153,10 @@ fn field_at(x: vec3<f32>) -> vec4<f32> {
         top = top - 1u;
         node = stack[top];
     }
+    queries_done = queries_done + 1u;
     return acc;
 }
 
-/// A sample's colour (rgb) and extinction per world unit (w), as Marcher::classify.
 fn classify(s: vec4<f32>) -> vec4<f32> {
     if (R.colouring == RBF_POST) {
         return vec4<f32>(tf_eval(s.y / s.x).xyz, s.x / P.unit_distance);
@@ -144,78 +182,201 @@ fn root_span(o: vec3<f32>, d: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(t0, t1);
 }
 
-/// One emission-absorption pass (Marcher::march): colour, transmittance, the view depth
-/// where the transmittance fell below 1/2, and, when `stop_at` >= 0, the first sample whose
-/// accumulated opacity reaches it (else the last composited one): its t and colour.
-struct Pass {
+/// A march in progress (Marcher::march): colour, transmittance, the view depth where the
+/// transmittance fell below 1/2, the last composited sample's t and colour (with a `stop_at`,
+/// the shade point), and the index k of the next sample, at t_k = (k + xi) dt.
+struct March {
     c: vec3<f32>,
     tr: f32,
     z: f32,
     shade_t: f32,
     shade_rgb: vec3<f32>,
+    k: f32,
 };
 
-fn march(o: vec3<f32>, d: vec3<f32>, span: vec2<f32>, xi: f32, stop_at: f32) -> Pass {
-    var out = Pass(vec3<f32>(0.0), 1.0, 1.0e30, 0.0, vec3<f32>(0.0));
+fn march_start(d: vec3<f32>, span: vec2<f32>, xi: f32) -> March {
     let dt = R.step / length(d);
-    var k = ceil(span.x / dt - xi);
-    loop {
-        let t = (k + xi) * dt;
-        if (t > span.y) {
-            break;
-        }
-        if (over_budget(R.query_bound + 1u)) {
-            atomicStore(&guard[0], 1u);
-            break;
-        }
-        tick(R.query_bound + 1u);
-        let s = field_at(o + t * d);
-        if (s.x > 0.0) {
-            let m = classify(s);
-            let st = exp(-m.w * R.step);
-            out.c = out.c + out.tr * (1.0 - st) * m.xyz;
-            out.tr = out.tr * st;
-            out.shade_t = t;
-            out.shade_rgb = m.xyz;
-            if (out.tr < 0.5 && out.z > 1.0e29) {
-                out.z = t - 0.5 * dt;
-            }
-            if (out.tr < P.min_transmittance || (stop_at >= 0.0 && 1.0 - out.tr >= stop_at)) {
-                break;
-            }
-        }
-        k = k + 1.0;
-    }
-    return out;
+    return March(vec3<f32>(0.0), 1.0, 1.0e30, 0.0, vec3<f32>(0.0), ceil(span.x / dt - xi));
 }
 
-/// The transmittance from x toward the light (Marcher::transmittance): a jittered march of
-/// the optical depth, stopped once it passes MAX_OPTICAL_DEPTH.
-fn transmittance(x: vec3<f32>, xi: f32) -> f32 {
-    let l = R.light.xyz;
-    let span = root_span(x, l);
-    var tau = 0.0;
-    var k = 0.0;
+/// Continues `m` along o + t d up to span.y, or until the transmittance falls below the
+/// minimum, or (`stop_at` >= 0) the accumulated opacity reaches `stop_at`: true when done,
+/// false when the loop budget ran out before a sample (resume at m.k).
+fn march(o: vec3<f32>, d: vec3<f32>, span: vec2<f32>, xi: f32, stop_at: f32,
+         m: ptr<function, March>) -> bool {
+    let dt = R.step / length(d);
     loop {
-        let t = (k + xi) * R.step;
-        if (t > span.y || span.x > span.y) {
-            break;
+        let t = ((*m).k + xi) * dt;
+        if (t > span.y) {
+            return true;
         }
-        if (over_budget(R.query_bound + 1u)) {
-            atomicStore(&guard[0], 1u);
-            break;
+        if (!take_iteration()) {
+            return false;
         }
-        tick(R.query_bound + 1u);
-        let s = field_at(x + t * l);
+        let s = field_at(o + t * d);
+        if (out_of_budget) {
+            return false;
+        }
         if (s.x > 0.0) {
-            tau = tau + classify(s).w * R.step;
-            if (tau >= MAX_OPTICAL_DEPTH) {
-                break;
+            let c = classify(s);
+            let st = exp(-c.w * R.step);
+            (*m).c = (*m).c + (*m).tr * (1.0 - st) * c.xyz;
+            (*m).tr = (*m).tr * st;
+            (*m).shade_t = t;
+            (*m).shade_rgb = c.xyz;
+            if ((*m).tr < 0.5 && (*m).z > 1.0e29) {
+                (*m).z = t - 0.5 * dt;
+            }
+            if ((*m).tr < P.min_transmittance || (stop_at >= 0.0 && 1.0 - (*m).tr >= stop_at)) {
+                return true;
             }
         }
-        k = k + 1.0;
+        (*m).k = (*m).k + 1.0;
     }
-    return exp(-tau);
+    return true;
+}
+
+/// Continues the optical depth `tau` from x toward the light (Marcher::transmittance: a
+/// jittered march, stopped once it passes MAX_OPTICAL_DEPTH) from sample `k`: true when
+/// done, false when the loop budget ran out (resume at k).
+fn transmittance(x: vec3<f32>, xi: f32, tau: ptr<function, f32>, k: ptr<function, f32>) -> bool {
+    let l = R.light.xyz;
+    let span = root_span(x, l);
+    loop {
+        let t = (*k + xi) * R.step;
+        if (t > span.y || span.x > span.y) {
+            return true;
+        }
+        if (!take_iteration()) {
+            return false;
+        }
+        let s = field_at(x + t * l);
+        if (out_of_budget) {
+            return false;
+        }
+        if (s.x > 0.0) {
+            *tau = *tau + classify(s).w * R.step;
+            if (*tau >= MAX_OPTICAL_DEPTH) {
+                return true;
+            }
+        }
+        *k = *k + 1.0;
+    }
+    return true;
+}
+
+/// A pixel's work in progress: pass `pi`, what it does next (`phase`), the march running
+/// (its k also that of shadow ray `s`), the pass's opacity, the shadow ray's optical depth
+/// and the transmittances summed, the passes' sum and the first pass's depth.
+struct Work {
+    pi: u32,
+    phase: u32,
+    s: u32,
+    m: March,
+    opacity: f32,
+    tau: f32,
+    lit: f32,
+    sum: vec4<f32>,
+    zfirst: f32,
+};
+
+fn save_work(px: u32, w: Work) {
+    let r = RESUME_VEC4S * px;
+    resume[r] = vec4<f32>(bitcast<f32>(w.pi), bitcast<f32>(w.phase), bitcast<f32>(w.s), w.m.k);
+    resume[r + 1u] = vec4<f32>(w.m.c, w.m.tr);
+    resume[r + 2u] = vec4<f32>(w.m.z, w.m.shade_t, w.tau, w.lit);
+    resume[r + 3u] = vec4<f32>(w.m.shade_rgb, w.opacity);
+    resume[r + 4u] = w.sum;
+    resume[r + 5u] = vec4<f32>(w.zfirst, 0.0, 0.0, 0.0);
+}
+
+fn load_work(px: u32) -> Work {
+    let r = RESUME_VEC4S * px;
+    let a = resume[r];
+    let b = resume[r + 1u];
+    let c = resume[r + 2u];
+    let e = resume[r + 3u];
+    let m = March(b.xyz, b.w, c.x, c.y, e.xyz, a.w);
+    return Work(bitcast<u32>(a.x), bitcast<u32>(a.y), bitcast<u32>(a.z), m, e.w, c.z, c.w,
+                resume[r + 4u], resume[r + 5u].x);
+}
+
+/// Ends pass w.pi with colour `c` (the pass's opacity from its first march) and starts the next.
+fn next_pass(w: ptr<function, Work>, c: vec3<f32>, d: vec3<f32>, span: vec2<f32>, i: u32,
+             j: u32) {
+    (*w).sum = (*w).sum + vec4<f32>(c, (*w).opacity);
+    (*w).pi = (*w).pi + 1u;
+    (*w).phase = PH_MARCH;
+    (*w).m = march_start(d, span, offset(i, j, (*w).pi, 0u));
+}
+
+/// Runs the pixel's passes from where `w` is (Marcher's passes, shade points and shadow rays,
+/// in the CPU's order): true when all are done, false when the loop budget ran out.
+fn run(w: ptr<function, Work>, o: vec3<f32>, d: vec3<f32>, span: vec2<f32>, i: u32,
+       j: u32) -> bool {
+    loop {
+        let pi = (*w).pi;
+        if (pi >= R.first_pass + R.spp || span.x > span.y) {
+            return true;
+        }
+        let xi = offset(i, j, pi, 0u);
+        var m = (*w).m;
+        if ((*w).phase == PH_MARCH) {
+            let done = march(o, d, span, xi, -1.0, &m);
+            (*w).m = m;
+            if (!done) {
+                return false;
+            }
+            (*w).opacity = 1.0 - m.tr;
+            if (pi == R.first_pass) {
+                (*w).zfirst = m.z;
+            }
+            if (R.shadows != 0u && (*w).opacity > 0.0) {
+                // Single scattering (Marcher::lit_pass): the shade point where the accumulated
+                // opacity reaches a random share of the pass's, lit through shadow rays.
+                (*w).phase = PH_PICK;
+                (*w).m = march_start(d, span, xi);
+            } else {
+                next_pass(w, m.c, d, span, i, j);
+            }
+            continue;
+        }
+        if ((*w).phase == PH_PICK) {
+            let pick = offset(i, j, pi, PICK_STREAM) * (*w).opacity;
+            let done = march(o, d, span, xi, pick, &m);
+            (*w).m = m;
+            if (!done) {
+                return false;
+            }
+            (*w).phase = PH_SHADOW;
+            (*w).s = 0u;
+            (*w).lit = 0.0;
+            (*w).tau = 0.0;
+            (*w).m.k = 0.0;
+            continue;
+        }
+        if ((*w).s < R.shadow_samples) {
+            let x = o + m.shade_t * d;
+            let xs = offset(i, j, pi * R.shadow_samples + (*w).s, SHADOW_STREAM);
+            var tau = (*w).tau;
+            var k = m.k;
+            let done = transmittance(x, xs, &tau, &k);
+            (*w).tau = tau;
+            (*w).m.k = k;
+            if (!done) {
+                return false;
+            }
+            (*w).lit = (*w).lit + exp(-tau);
+            (*w).s = (*w).s + 1u;
+            (*w).tau = 0.0;
+            (*w).m.k = 0.0;
+            continue;
+        }
+        let lit = (*w).lit / f32(R.shadow_samples);
+        next_pass(w, (*w).opacity * m.shade_rgb * (R.ambient + (1.0 - R.ambient) * lit), d,
+                  span, i, j);
+    }
+    return true;
 }
 
 @compute @workgroup_size(8, 8)
@@ -237,30 +398,28 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let span = root_span(o, d);
     let px = j * P.width + i;
-    var sum = vec4<f32>(0.0);
-    var z = 1.0e30;
-    for (var pi = R.first_pass; pi < R.first_pass + R.spp && span.x <= span.y; pi = pi + 1u) {
-        var p = march(o, d, span, offset(i, j, pi, 0u), -1.0);
-        let opacity = 1.0 - p.tr;
-        if (R.shadows != 0u && opacity > 0.0) {
-            // Single scattering (Marcher::lit_pass): the shade point where the accumulated
-            // opacity reaches a random share of the pass's, lit through shadow rays.
-            let pick = offset(i, j, pi, PICK_STREAM) * opacity;
-            let sp = march(o, d, span, offset(i, j, pi, 0u), pick);
-            let x = o + sp.shade_t * d;
-            var lit = 0.0;
-            for (var s = 0u; s < R.shadow_samples; s = s + 1u) {
-                let xs = offset(i, j, pi * R.shadow_samples + s, SHADOW_STREAM);
-                lit = lit + transmittance(x, xs);
-            }
-            lit = lit / f32(R.shadow_samples);
-            p.c = opacity * sp.shade_rgb * (R.ambient + (1.0 - R.ambient) * lit);
+    var w: Work;
+    if (R.round == 0u) {
+        let m = march_start(d, span, offset(i, j, R.first_pass, 0u));
+        w = Work(R.first_pass, PH_MARCH, 0u, m, 0.0, 0.0, 0.0, vec4<f32>(0.0), 1.0e30);
+    } else {
+        w = load_work(px);
+        if (w.phase == PH_DONE) {
+            return;
         }
-        if (pi == R.first_pass) {
-            z = p.z;
-        }
-        sum = sum + vec4<f32>(p.c, opacity);
     }
-    image[px] = sum / f32(R.spp);
-    depth[px] = z;
+    if (!run(&w, o, d, span, i, j)) {
+        if (queries_done == 0u) {
+            // Not one query fits the driver's limit: refused (the host reads the guard).
+            atomicStore(&guard[0], 1u);
+        }
+        save_work(px, w);
+        atomicAdd(&stopped[0], 1u);
+        return;
+    }
+    image[px] = w.sum / f32(R.spp);
+    depth[px] = w.zfirst;
+    if (P.loop_limit != 0xffffffffu) {
+        resume[RESUME_VEC4S * px + 0u].y = bitcast<f32>(PH_DONE);
+    }
 }
