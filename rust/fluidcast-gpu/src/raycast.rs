@@ -199,20 +199,7 @@ impl Gpu {
         let n_px = w as u64 * h as u64;
         let groups = (w.div_ceil(d), h.div_ceil(d));
         let bundles = groups.0 as u64 * groups.1 as u64;
-        // The far depths of all pixels, then the near ones, when either is given.
-        // f32::INFINITY is fine in WGSL storage (the shader only compares against it).
-        let limits: Vec<f32> = match (&params.depth_limit, &params.depth_near) {
-            (None, None) => Vec::new(),
-            (far, near) => {
-                let n = n_px as usize;
-                let far = far
-                    .as_deref()
-                    .map_or(vec![f32::INFINITY; n], <[f32]>::to_vec);
-                let near = near.as_deref().map_or(vec![0.0; n], <[f32]>::to_vec);
-                [far, near].concat()
-            }
-        };
-        let limit = self.upload("depth limit", &limits);
+        let limit = self.upload("depth limit", &depth_limits(params, n_px as usize));
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
@@ -224,9 +211,7 @@ impl Gpu {
             16
         };
         let state = self.buffer("ray state", state_bytes, RW, None);
-        let mut fresh = vec![RESUME_FRESH; bundles as usize + 1];
-        fresh[0] = 0;
-        let resume = self.upload("resume", &fresh);
+        let resume = self.upload("resume", &fresh_resume(bundles as usize));
         let binds = [
             ("P", b.frame),
             ("tf", b.tf),
@@ -269,4 +254,27 @@ impl Gpu {
         }
         Ok(())
     }
+}
+
+/// raycast.wgsl's `depth_limit`: the far depths of all `n` pixels, then the near ones, when
+/// either is given (empty otherwise). f32::INFINITY is fine in WGSL storage (the shader only
+/// compares against it).
+fn depth_limits(params: &RenderParams, n: usize) -> Vec<f32> {
+    match (&params.depth_limit, &params.depth_near) {
+        (None, None) => Vec::new(),
+        (far, near) => {
+            let far = far
+                .as_deref()
+                .map_or(vec![f32::INFINITY; n], <[f32]>::to_vec);
+            let near = near.as_deref().map_or(vec![0.0; n], <[f32]>::to_vec);
+            [far, near].concat()
+        }
+    }
+}
+
+/// raycast.wgsl's `resume` before the first dispatch: no bundle stopped, every bundle fresh.
+fn fresh_resume(bundles: usize) -> Vec<u32> {
+    let mut fresh = vec![RESUME_FRESH; bundles + 1];
+    fresh[0] = 0;
+    fresh
 }

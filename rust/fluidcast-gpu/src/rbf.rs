@@ -148,6 +148,29 @@ impl Gpu {
         Err(self.loop_limit_error("the RBF march (too many dispatches)"))
     }
 
+    /// The field as rbf.wgsl binds it: BVH boxes, spheres, attributes, and the blue noise.
+    fn field_buffers(&self, field: &RbfField) -> [wgpu::Buffer; 4] {
+        let (boxes, attrs) = field_arrays(field);
+        [
+            self.upload("rbf boxes", &boxes),
+            self.upload("rbf spheres", field.bvh().spheres()),
+            self.upload("rbf attributes", &attrs),
+            self.upload("blue noise", fluidcast_render::bluenoise::mask()),
+        ]
+    }
+
+    /// rbf.wgsl's `resume` and `stopped` for `n_px` pixels: a pixel keeps its work between
+    /// dispatches (RESUME_VEC4S vec4s) only where a loop limit can stop it.
+    fn resume_buffers(&self, n_px: u64) -> (wgpu::Buffer, wgpu::Buffer) {
+        let bytes = if self.bounded() {
+            16 * RESUME_VEC4S * n_px
+        } else {
+            16
+        };
+        let resume = self.buffer("rbf resume", bytes, RW, None);
+        (resume, self.upload("rbf stopped", &[0u32; 4]))
+    }
+
     /// Reads the march's image (premultiplied RGBA, depth: empty pixels at infinity) back
     /// into `image`; true when a shader invocation hit the loop guard.
     fn read_image(
@@ -198,7 +221,6 @@ impl Gpu {
         let t0 = Instant::now();
         let n = bvh.len();
         let u = rbf_uniform(field, rbf, step);
-        let (boxes, attrs) = field_arrays(field);
         let fu = frame_uniform(&frame, params, tf, n, self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
         let rbf_buf = self.buffer(
@@ -208,23 +230,12 @@ impl Gpu {
             Some(bytemuck::bytes_of(&u)),
         );
         let tf_buf = self.tf_buffer(tf);
-        let boxes = self.upload("rbf boxes", &boxes);
-        let spheres = self.upload("rbf spheres", bvh.spheres());
-        let attrs = self.upload("rbf attributes", &attrs);
-        let blue = self.upload("blue noise", fluidcast_render::bluenoise::mask());
+        let [boxes, spheres, attrs, blue] = self.field_buffers(field);
         let n_px = u64::from(w) * u64::from(h);
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let guard = self.upload("guard", &[0u32; 4]);
-        // A pixel keeps its work between dispatches (rbf.wgsl's RESUME_VEC4S vec4s) only
-        // where a loop limit can stop it.
-        let resume_bytes = if self.bounded() {
-            16 * RESUME_VEC4S * n_px
-        } else {
-            16
-        };
-        let resume = self.buffer("rbf resume", resume_bytes, RW, None);
-        let stopped = self.upload("rbf stopped", &[0u32; 4]);
+        let (resume, stopped) = self.resume_buffers(n_px);
         push_stage(&mut stats, "upload", ms(t0));
         let binds = [
             ("P", &frame_buf),
