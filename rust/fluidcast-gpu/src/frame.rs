@@ -247,13 +247,10 @@ impl Gpu {
     }
 
     /// The stages without a guard of their own loop a number of times that the host can bound:
-    /// `bundle_ranges` at most twice the bundle count, `greedy` about 27 times the cells along
-    /// a bundle (see plan.wgsl). On a software driver these must stay under its loop limit.
-    pub(crate) fn check_loop_bounds(&self, bundles: u64, cells_z: u64) -> Result<(), GpuError> {
+    /// `greedy` about 27 times the cells along a bundle (see plan.wgsl). On a software driver
+    /// this must stay under its loop limit.
+    pub(crate) fn check_loop_bounds(&self, cells_z: u64) -> Result<(), GpuError> {
         let limit = self.loop_limit as u64;
-        if 2 * bundles + 2 > limit {
-            return Err(self.loop_limit_error("the bundle table"));
-        }
         if cells_z * 27 + 21 > limit {
             return Err(self.loop_limit_error("the greedy plan"));
         }

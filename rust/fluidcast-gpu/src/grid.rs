@@ -165,7 +165,7 @@ impl Gpu {
         if nb * cells_z * 2 > u32::MAX as u64 {
             return Err(GpuError::GridTooLarge(nb, cells_z));
         }
-        self.check_loop_bounds(nb, cells_z)?;
+        self.check_loop_bounds(cells_z)?;
         ctx.stats.depth_samples = depths.len();
         ctx.stats.near = near;
         ctx.stats.far = far;
@@ -291,8 +291,14 @@ impl Gpu {
             ("cells", &grid.cells),
             ("bundle_cells", &grid.bundle_cells),
         ];
-        let groups = grid.cells_n.div_ceil(256);
-        self.dispatch(pass, &self.pipes.bundle_ranges, &binds, groups)
+        // One invocation per bundle and one past the last.
+        let bundles = ctx.u.bundles_x * ctx.u.bundles_y;
+        self.dispatch(
+            pass,
+            &self.pipes.bundle_ranges,
+            &binds,
+            (bundles + 1).div_ceil(256),
+        )
     }
 
     /// grid.wgsl's counters, read back.

@@ -226,22 +226,26 @@ fn make_cells(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw:
 @compute @workgroup_size(256)
 fn bundle_ranges(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
                  @builtin(local_invocation_index) li: u32) {
-    let c = group_index(wg, nw) * 256u + li;
-    if (c >= P.n_cells) {
+    // One invocation per bundle (and one past the last): the first cell of bundle bb or a
+    // later one, by a binary search over the cells (sorted by bundle). At most 33 iterations
+    // whatever the view, where a cell filling the run of empty bundles before it looped over
+    // every one of them (more than a software driver allows at 1920 x 1080).
+    let bb = group_index(wg, nw) * 256u + li;
+    if (bb > P.bundles_x * P.bundles_y) {
         return;
     }
-    let b = cells[c].bundle;
-    var prev = 0u;
-    if (c > 0u) {
-        prev = cells[c - 1u].bundle + 1u;
-    }
-    for (var bb = prev; bb <= b; bb = bb + 1u) {
-        bundle_cells[bb] = c;
-    }
-    if (c + 1u == P.n_cells) {
-        let nb = P.bundles_x * P.bundles_y;
-        for (var bb = b + 1u; bb <= nb; bb = bb + 1u) {
-            bundle_cells[bb] = P.n_cells;
+    var lo = 0u;
+    var hi = P.n_cells;
+    loop {
+        if (lo >= hi) {
+            break;
+        }
+        let mid = lo + (hi - lo) / 2u;
+        if (cells[mid].bundle < bb) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
         }
     }
+    bundle_cells[bb] = lo;
 }
