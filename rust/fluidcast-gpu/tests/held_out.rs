@@ -313,3 +313,34 @@ fn bundles_past_the_loop_limit_resume_in_later_dispatches() {
         "{n} ray casting dispatches"
     );
 }
+
+/// More bundles (32,400 at 1920 × 1080) than a software driver lets one invocation loop over,
+/// and long runs of empty bundles between a few particles: the table of each bundle's cells
+/// takes a bounded search per bundle, so the view renders as on the CPU (it was refused on
+/// lavapipe at this size).
+#[test]
+fn full_hd_views_with_empty_bundles_render() {
+    let Some(g) = gpu() else { return };
+    let p = common::cloud(40, 8);
+    let tf = common::cloud_tf();
+    let mut cam = Camera::default();
+    cam.reset([-0.7; 3], [0.7; 3]);
+    let prm = RenderParams {
+        width: 1920,
+        height: 1080,
+        adaptive: modes()[0].1,
+        ..Default::default()
+    };
+    let cpu = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let gpu = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    assert!(
+        cpu.image.rgba.iter().any(|q| q[3] > 0.1),
+        "nothing rendered"
+    );
+    let differ = differing_pixels(&cpu.image, &gpu.image);
+    assert!(
+        differ.len() * 10_000 <= cpu.image.rgba.len(),
+        "{} pixels differ",
+        differ.len()
+    );
+}
