@@ -92,6 +92,14 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
 /// `resume[1 + b]` before bundle b's first dispatch (raycast.wgsl's RESUME_FRESH).
 const RESUME_FRESH: u32 = u32::MAX;
 
+/// Samples per span (raycast.wgsl's MAXS).
+const MAXS: u64 = 64;
+
+/// The most bytes of span sums kept so that bundles can stop between chunks of a span
+/// (raycast.wgsl's `chunk_sums`: 2 MAXS floats per ray): 8192 bundles, about 512 × 512 pixels,
+/// where cells hold the most particles. Larger images stop only before spans.
+const MAX_CHUNK_SUMS_BYTES: u64 = 256 << 20;
+
 /// Most dispatches of the ray caster in one pass: each dispatch casts at least one more span
 /// of every bundle it stops, so a pass takes at most as many as a bundle has spans.
 const MAX_DISPATCHES: u32 = 1 << 16;
@@ -211,6 +219,15 @@ impl Gpu {
             16
         };
         let state = self.buffer("ray state", state_bytes, RW, None);
+        // And the span's sums, to stop between chunks of a span, where they are small enough.
+        let sums_bytes = 4 * 128 * MAXS * bundles;
+        let chunked = self.bounded() && sums_bytes <= MAX_CHUNK_SUMS_BYTES;
+        let sums = self.buffer(
+            "chunk sums",
+            if chunked { sums_bytes } else { 16 },
+            RW,
+            None,
+        );
         let resume = self.upload("resume", &fresh_resume(bundles as usize));
         let binds = [
             ("P", b.frame),
@@ -229,6 +246,7 @@ impl Gpu {
             ("guard", b.guard),
             ("ray_state", &state),
             ("resume", &resume),
+            ("chunk_sums", &sums),
         ];
         stats.dispatches += self.cast_until_done(timer, &binds, groups, &resume)?;
         let parts = [
@@ -272,9 +290,11 @@ fn depth_limits(params: &RenderParams, n: usize) -> Vec<f32> {
     }
 }
 
-/// raycast.wgsl's `resume` before the first dispatch: no bundle stopped, every bundle fresh.
+/// raycast.wgsl's `resume` before the first dispatch: no bundle stopped, every bundle fresh,
+/// every chunk 0.
 fn fresh_resume(bundles: usize) -> Vec<u32> {
     let mut fresh = vec![RESUME_FRESH; bundles + 1];
     fresh[0] = 0;
+    fresh.resize(2 * bundles + 1, 0);
     fresh
 }

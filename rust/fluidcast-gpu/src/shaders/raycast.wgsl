@@ -21,10 +21,15 @@
 // stops before a span and resumes there in the host's next dispatch of this stage, the image
 // unchanged: its rays' compositing state at ray_state[2 (64 b + li)] (colour, T) and
 // (depth at half opacity, samples as bits, done, 0); resume[1 + b] the span to resume at
-// (RESUME_FRESH before the first dispatch, RESUME_DONE once the bundle's pixels are written);
-// resume[0] the bundles that stopped in this dispatch.
+// (RESUME_FRESH before the first dispatch, RESUME_DONE once the bundle's pixels are written)
+// and resume[1 + B + b] the chunk of its particles (B bundles; 0: the span's start);
+// resume[0] the bundles that stopped in this dispatch. Where chunk_sums holds every ray's
+// span sums (2 MAXS floats at (64 b + li) 2 MAXS: small images, whose cells hold the most
+// particles), a bundle may stop between two chunks of a span too, so that no span is too
+// long for one invocation; elsewhere only before a span.
 @group(0) @binding(15) var<storage, read_write> ray_state: array<vec4<f32>>;
 @group(0) @binding(16) var<storage, read_write> resume: array<atomic<u32>>;
+@group(0) @binding(17) var<storage, read_write> chunk_sums: array<f32>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
@@ -43,6 +48,7 @@ var<workgroup> wg_samples: atomic<u32>;
 var<workgroup> all_done: atomic<u32>;
 var<workgroup> done_flag: u32;
 var<workgroup> wg_resume: u32;
+var<workgroup> wg_resume_chunk: u32;
 
 /// The t-th particle reference of a span: the merged cells' references, each particle once
 /// (a cell's references with the merge bit set are repeated by the next cell).
@@ -71,16 +77,27 @@ fn span_refs(first: u32, count: u32) -> u32 {
     return n;
 }
 
-/// Loop iterations that sampled span `span` with `ref_count` particle references costs an
-/// invocation at most, as `main` ticks them (the initial sums, span_refs, per chunk its loads
-/// and loop, per particle its samples, the compositing), plus what the loop guard reserves
-/// before a chunk for the rest of the span: an upper bound that every invocation of the
-/// workgroup computes alike, so that all stop before the same span.
-fn span_cost(span: Span, ref_count: u32) -> u32 {
-    let n = span.n;
-    let chunks = (ref_count + CHUNK - 1u) / CHUNK;
-    return (n + 1u) + (span.count + 2u) + ref_count * (n + 2u) + chunks * (span.count + 3u)
-        + (n + 1u) + (n + span.count + 16u);
+/// Loop iterations, at most, that an invocation spends on a sampled span as `main` ticks
+/// them, in parts that every invocation of the workgroup computes alike (so that all stop at
+/// the same place): `span_head` before its chunks (the initial sums, span_refs), `chunk_cost`
+/// per chunk of `cn` particles (its loads, loop and samples), `span_tail` after them (the
+/// compositing, and what the loop guard reserves before a chunk for the rest of the span).
+fn span_head(span: Span) -> u32 {
+    return (span.n + 1u) + (span.count + 2u);
+}
+
+fn chunk_cost(span: Span, cn: u32) -> u32 {
+    return (span.count + 3u) + cn * (span.n + 2u);
+}
+
+fn span_tail(span: Span) -> u32 {
+    return (span.n + 1u) + (2u * span.n + 2u * span.count + 20u);
+}
+
+/// Iterations of the chunks from particle reference `c0` of `ref_count` on.
+fn chunks_cost(span: Span, ref_count: u32, c0: u32) -> u32 {
+    let left = ref_count - min(c0, ref_count);
+    return ((left + CHUNK - 1u) / CHUNK) * (span.count + 3u) + left * (span.n + 2u);
 }
 
 /// How many of the span's first n (<= 64) samples, at span_z[m], lie below z (or at or below
@@ -106,6 +123,23 @@ fn below_probe(n: u32, z: f32, or_at: bool, lo: u32, by: u32) -> u32 {
         }
     }
     return lo;
+}
+
+/// Stops the bundle before chunk `c0` of span `s` (0: the span's start): its ray's state
+/// saved, the place noted once for the workgroup, and counted.
+fn suspend(st: u32, color: vec3<f32>, trans: f32, depth_half: f32, samples: u32, done: bool,
+           guarded: bool, li: u32, b: u32, nb: u32, s: u32, c0: u32) {
+    ray_state[st] = vec4<f32>(color, trans);
+    ray_state[st + 1u] = vec4<f32>(depth_half, bitcast<f32>(samples), select(0.0, 1.0, done),
+                                   0.0);
+    if (li == 0u) {
+        atomicStore(&resume[1u + b], s);
+        atomicStore(&resume[1u + nb + b], c0);
+        atomicAdd(&resume[0], 1u);
+    }
+    if (guarded) {
+        atomicOr(&guard[0], 1u);
+    }
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -153,10 +187,15 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     var guarded = false;
     let s1 = bundle_cells[b] + span_count[b];
     // Where this dispatch starts: the first span, or where an earlier dispatch stopped.
+    let nb = P.bundles_x * P.bundles_y;
     if (li == 0u) {
         wg_resume = atomicLoad(&resume[1u + b]);
+        wg_resume_chunk = atomicLoad(&resume[1u + nb + b]);
     }
     let resume_at = workgroupUniformLoad(&wg_resume);
+    let resume_chunk = workgroupUniformLoad(&wg_resume_chunk);
+    let chunked = arrayLength(&chunk_sums) >= nb * 128u * MAXS;
+    let sums_at = (b * 64u + li) * 2u * MAXS;
     if (resume_at == RESUME_DONE) {
         return;
     }
@@ -194,24 +233,20 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         }
         let span = spans[s];
         var ref_count = 0u;
+        // The chunk this invocation starts the span at: where an earlier one stopped in it.
+        var c_start = 0u;
+        if (s == s0 && resume_at != RESUME_FRESH) {
+            c_start = resume_chunk;
+        }
         if (span.superpixel == 0u) {
             ref_count = span_refs(span.first, span.count);
-            let cost = span_cost(span, ref_count);
-            if (s > s0 && budget + cost > P.loop_limit) {
+            let whole = span_head(span) + chunks_cost(span, ref_count, 0u) + span_tail(span);
+            if (!chunked && s > s0 && budget + whole > P.loop_limit) {
                 // Stop before this span; the next dispatch resumes here.
-                ray_state[st] = vec4<f32>(color, trans);
-                ray_state[st + 1u] = vec4<f32>(depth_half, bitcast<f32>(samples),
-                                               select(0.0, 1.0, done), 0.0);
-                if (li == 0u) {
-                    atomicStore(&resume[1u + b], s);
-                    atomicAdd(&resume[0], 1u);
-                }
-                if (guarded) {
-                    atomicOr(&guard[0], 1u);
-                }
+                suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s, 0u);
                 return;
             }
-            budget = budget + cost;
+            budget = budget + span_head(span);
         }
         if (span.superpixel == 1u) {
             if (!done) {
@@ -256,11 +291,26 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         for (var m = 0u; m < n; m = m + 1u) { // only samples 0..n are used
             weighted[m] = 0.0;
             shepard[m] = 0.0;
+            if (c_start > 0u) {
+                weighted[m] = chunk_sums[sums_at + m];
+                shepard[m] = chunk_sums[sums_at + MAXS + m];
+            }
         }
         tick(1u);
-        for (var c0 = 0u; c0 < ref_count; c0 = c0 + CHUNK) {
-            tick(2u); // this loop and the exit of the k loop
+        for (var c0 = c_start; c0 < ref_count; c0 = c0 + CHUNK) {
             let cn = min(CHUNK, ref_count - c0);
+            let progress = s > s0 || c0 > c_start;
+            if (chunked && progress && budget + chunk_cost(span, cn) + span_tail(span) > P.loop_limit) {
+                // Stop before this chunk, keeping the span's sums; the next dispatch resumes.
+                for (var m = 0u; m < n; m = m + 1u) {
+                    chunk_sums[sums_at + m] = weighted[m];
+                    chunk_sums[sums_at + MAXS + m] = shepard[m];
+                }
+                suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s, c0);
+                return;
+            }
+            budget = budget + chunk_cost(span, cn);
+            tick(2u); // this loop and the exit of the k loop
             workgroupBarrier();
             tick(span.count + 1u); // span_ref, in the invocations that load
             if (li < cn) {
@@ -314,6 +364,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 }
             }
         }
+        budget = budget + n + 1u;
         tick(n + 1u); // compositing, at most n samples
         if (!done) {
             for (var m = 0u; m < n; m = m + 1u) {
