@@ -657,13 +657,17 @@ fn render_watched(
     let finished = std::sync::atomic::AtomicBool::new(false);
     std::thread::scope(|s| {
         let watcher = (!quiet).then(|| s.spawn(|| show_progress(&progress, &finished)));
-        let r = renderer.render(scene, &plan);
+        // A panic in the renderer stops the bar too, then goes on: the scope would otherwise
+        // wait for the bar's thread for ever (a wgpu validation panic hung the process).
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            renderer.render(scene, &plan)
+        }));
         finished.store(true, std::sync::atomic::Ordering::Relaxed);
         // Wake it now: the frame is not to wait for the bar's next tick.
         if let Some(w) = &watcher {
             w.thread().unpark();
         }
-        r
+        r.unwrap_or_else(|p| std::panic::resume_unwind(p))
     })
 }
 

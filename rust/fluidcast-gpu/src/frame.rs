@@ -129,6 +129,7 @@ impl Gpu {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         check_frame(particles, surface, tf, params)?;
+        self.check_image(params.width, params.height)?;
         let frame = camera
             .frame(params.width, params.height)
             .map_err(RenderError::from)?;

@@ -67,6 +67,9 @@ pub enum GpuError {
     /// A ray bundle larger than the GPU's 8x8 pixels.
     #[error("the GPU renderer supports ray bundles of at most 8x8 pixels (--bundle {0})")]
     BundleTooLarge(u32),
+    /// An image whose RGBA floats exceed one storage binding (width, height, most pixels).
+    #[error("a {0}x{1} image is more than the GPU's buffers take ({2} pixels at most); render a smaller image or use --backend cpu")]
+    ImageTooLarge(u32, u32, u64),
     /// More particle–cell pairs than the GPU's buffers take (pairs, limit).
     #[error("the view needs {0} particle-cell pairs, more than the GPU renderer's limit of {1}; render a smaller image, fewer particles or use --backend cpu")]
     TooManyPairs(u64, u64),
@@ -261,6 +264,18 @@ impl Gpu {
     pub fn with_loop_limit(mut self, iterations: u32) -> Gpu {
         self.loop_limit = self.loop_limit.min(iterations);
         self
+    }
+
+    /// The image's RGBA floats (16 bytes a pixel) must fit one storage binding.
+    fn check_image(&self, width: u32, height: u32) -> Result<(), GpuError> {
+        if 16 * u64::from(width) * u64::from(height) > self.max_binding {
+            return Err(GpuError::ImageTooLarge(
+                width,
+                height,
+                self.max_binding / 16,
+            ));
+        }
+        Ok(())
     }
 
     /// True where a loop limit bounds the invocations (software drivers, `with_loop_limit`):

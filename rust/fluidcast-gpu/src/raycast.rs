@@ -146,6 +146,7 @@ impl Gpu {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         check_supported(params, tf)?;
+        self.check_image(params.width, params.height)?;
         let (grid, plan) = (&planned.grid, &planned.plan);
         let mut ctx = self.frame_ctx(&grid.frame, params, tf, grid.particles.len());
         ctx.stats = planned.stats.clone();
@@ -212,22 +213,25 @@ impl Gpu {
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
         // A bundle's rays keep their compositing state between dispatches (two vec4 each)
-        // only where a loop limit can stop them (see raycast.wgsl's `resume`).
-        let state_bytes = if self.bounded() {
-            2 * 16 * 64 * bundles
+        // only where a loop limit can stop them and the state fits one binding (else the
+        // shader stops nothing, and the loop guard refuses what passes the limit); the span's
+        // sums too, to stop between chunks of a span, where they are small enough (see
+        // raycast.wgsl's `resume`).
+        let fits = |bytes: u64, most: u64| self.bounded() && bytes <= most.min(self.max_binding);
+        let state_bytes = 2 * 16 * 64 * bundles;
+        let state_bytes = if fits(state_bytes, u64::MAX) {
+            state_bytes
         } else {
             16
         };
         let state = self.buffer("ray state", state_bytes, RW, None);
-        // And the span's sums, to stop between chunks of a span, where they are small enough.
         let sums_bytes = 4 * 128 * MAXS * bundles;
-        let chunked = self.bounded() && sums_bytes <= MAX_CHUNK_SUMS_BYTES;
-        let sums = self.buffer(
-            "chunk sums",
-            if chunked { sums_bytes } else { 16 },
-            RW,
-            None,
-        );
+        let sums_bytes = if fits(sums_bytes, MAX_CHUNK_SUMS_BYTES) {
+            sums_bytes
+        } else {
+            16
+        };
+        let sums = self.buffer("chunk sums", sums_bytes, RW, None);
         let resume = self.upload("resume", &fresh_resume(bundles as usize));
         let binds = [
             ("P", b.frame),

@@ -160,10 +160,13 @@ impl Gpu {
     }
 
     /// rbf.wgsl's `resume` and `stopped` for `n_px` pixels: a pixel keeps its work between
-    /// dispatches (RESUME_VEC4S vec4s) only where a loop limit can stop it.
+    /// dispatches (RESUME_VEC4S vec4s) only where a loop limit can stop it and the work fits
+    /// one binding (else the shader stops nothing, and the guard refuses what passes the
+    /// limit).
     fn resume_buffers(&self, n_px: u64) -> (wgpu::Buffer, wgpu::Buffer) {
-        let bytes = if self.bounded() {
-            16 * RESUME_VEC4S * n_px
+        let bytes = 16 * RESUME_VEC4S * n_px;
+        let bytes = if self.bounded() && bytes <= self.max_binding {
+            bytes
         } else {
             16
         };
@@ -201,6 +204,7 @@ impl Gpu {
         rbf: &RbfRenderParams,
     ) -> Result<(Image, RenderStats), GpuError> {
         check_rbf(field, tf, params, rbf)?;
+        self.check_image(params.width, params.height)?;
         let _frame_lock = self
             .frame_lock
             .lock()

@@ -163,6 +163,20 @@ fn gpu_rbf_refuses_what_it_does_not_draw() {
         .render_rbf(&field, &cam, &tf, &prm, &RbfRenderParams::default())
         .unwrap_err();
     assert!(e.to_string().contains("loop"), "{e}");
+    // An image past one storage binding is refused with what it takes, not a wgpu panic
+    // (lavapipe binds 128 MiB: 8.4M pixels; a hardware GPU may take it).
+    let huge = RenderParams {
+        width: 4096,
+        height: 4096,
+        ..Default::default()
+    };
+    match gpu.render_rbf(&field, &cam, &tf, &huge, &RbfRenderParams::default()) {
+        Err(e @ fluidcast_gpu::GpuError::ImageTooLarge(..)) => {
+            assert!(e.to_string().contains("4096x4096"), "{e}")
+        }
+        Err(e) => panic!("{e}"),
+        Ok(_) => assert!(!gpu.is_software(), "lavapipe's bindings hold 8.4M pixels"),
+    }
     let zero = RbfRenderParams {
         spp: 0,
         ..Default::default()

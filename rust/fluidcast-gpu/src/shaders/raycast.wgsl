@@ -194,7 +194,10 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     }
     let resume_at = workgroupUniformLoad(&wg_resume);
     let resume_chunk = workgroupUniformLoad(&wg_resume_chunk);
-    let chunked = arrayLength(&chunk_sums) >= nb * 128u * MAXS;
+    // What the host could keep: the rays' state (else nothing stops; the guard refuses), and
+    // the span sums (else bundles stop only before spans).
+    let resumable = arrayLength(&ray_state) >= nb * 128u;
+    let chunked = resumable && arrayLength(&chunk_sums) >= nb * 128u * MAXS;
     let sums_at = (b * 64u + li) * 2u * MAXS;
     if (resume_at == RESUME_DONE) {
         return;
@@ -241,7 +244,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         if (span.superpixel == 0u) {
             ref_count = span_refs(span.first, span.count);
             let whole = span_head(span) + chunks_cost(span, ref_count, 0u) + span_tail(span);
-            if (!chunked && s > s0 && budget + whole > P.loop_limit) {
+            if (resumable && !chunked && s > s0 && budget + whole > P.loop_limit) {
                 // Stop before this span; the next dispatch resumes here.
                 suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s, 0u);
                 return;
