@@ -10,6 +10,9 @@ use wgpu::util::DeviceExt;
 
 use crate::{cast, push_stage, Gpu, GpuError, QUERIES};
 
+/// Most dispatches of one stage (see [`Gpu::dispatch_until_done`]).
+const MAX_DISPATCHES: u32 = 1 << 20;
+
 /// A compute pipeline and the binding numbers of its shader's globals, by name.
 pub(crate) struct Pipe {
     pipeline: wgpu::ComputePipeline,
@@ -136,6 +139,44 @@ impl Gpu {
         }
         let x = groups.min(32768);
         self.dispatch_2d(pass, pipe, binds, (x, groups.div_ceil(x)))
+    }
+
+    /// Dispatches `pipe` (with its stage's name for errors) until no invocation stopped at
+    /// the loop limit, once where there is none: after each dispatch the first u32 of
+    /// `stopped` (the invocations that stopped and are to resume) and of `guard` (set: a
+    /// refusal the caller reports) are read back; while some stopped and none refused,
+    /// `stopped` is reset, `next(n)` prepares dispatch n + 1 and it runs. Each dispatch takes
+    /// every stopped invocation at least one step further (a span, a chunk, a point query),
+    /// so the count is bounded by the work; past MAX_DISPATCHES it is refused. Returns the
+    /// dispatches.
+    pub(crate) fn dispatch_until_done(
+        &self,
+        timer: &mut Timer,
+        (pipe, stage): (&Pipe, &'static str),
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: (u32, u32),
+        (stopped, guard): (&wgpu::Buffer, &wgpu::Buffer),
+        mut next: impl FnMut(u64),
+    ) -> Result<u64, GpuError> {
+        for n in 1..=u64::from(MAX_DISPATCHES) {
+            self.submit_pass(timer, "gpu_raycast", |pass| {
+                self.dispatch_2d(pass, pipe, binds, groups)
+            })?;
+            if !self.bounded() {
+                return Ok(n);
+            }
+            let parts = [(stopped, 4), (guard, 4)];
+            let (left, refused) = self.fetch_with(&parts, |got| {
+                (cast::<u32>(got[0])[0], cast::<u32>(got[1])[0])
+            })?;
+            if left == 0 || refused != 0 {
+                return Ok(n);
+            }
+            self.queue
+                .write_buffer(stopped, 0, bytemuck::bytes_of(&0u32));
+            next(n);
+        }
+        Err(self.loop_limit_error(stage))
     }
 
     pub(crate) fn dispatch_2d(

@@ -100,39 +100,7 @@ const MAXS: u64 = 64;
 /// where cells hold the most particles. Larger images stop only before spans.
 const MAX_CHUNK_SUMS_BYTES: u64 = 256 << 20;
 
-/// Most dispatches of the ray caster in one pass: each dispatch casts at least one more span
-/// of every bundle it stops, so a pass takes at most as many as a bundle has spans.
-const MAX_DISPATCHES: u32 = 1 << 16;
-
 impl Gpu {
-    /// Dispatches the ray caster until no bundle stopped at the loop limit: on hardware
-    /// (no limit) once; on a software driver, again while any bundle stopped before a span,
-    /// so that no invocation runs more loop iterations than the driver allows, whatever the
-    /// scene (raycast.wgsl's `resume`). Returns the dispatches.
-    fn cast_until_done(
-        &self,
-        timer: &mut Timer,
-        binds: &[(&str, &wgpu::Buffer)],
-        groups: (u32, u32),
-        resume: &wgpu::Buffer,
-    ) -> Result<u64, GpuError> {
-        for n in 1..=u64::from(MAX_DISPATCHES) {
-            self.submit_pass(timer, "gpu_raycast", |pass| {
-                self.dispatch_2d(pass, &self.pipes.raycast, binds, groups)
-            })?;
-            if !self.bounded() {
-                return Ok(n);
-            }
-            let stopped = self.fetch_with(&[(resume, 4)], |got| cast::<u32>(got[0])[0])?;
-            if stopped == 0 {
-                return Ok(n);
-            }
-            self.queue
-                .write_buffer(resume, 0, bytemuck::bytes_of(&0u32));
-        }
-        Err(self.loop_limit_error("the ray casting (too many dispatches)"))
-    }
-
     /// Casts the rays of a grid and plan built on the CPU ([`fluidcast_render::plan_adaptive`]):
     /// the ray casting stage alone, to test it against the CPU's caster on the same input.
     pub fn render_planned(
@@ -252,7 +220,16 @@ impl Gpu {
             ("resume", &resume),
             ("chunk_sums", &sums),
         ];
-        stats.dispatches += self.cast_until_done(timer, &binds, groups, &resume)?;
+        let pipe = &self.pipes.raycast;
+        let flags = (&resume, b.guard);
+        stats.dispatches += self.dispatch_until_done(
+            timer,
+            (pipe, "the ray casting"),
+            &binds,
+            groups,
+            flags,
+            |_| {},
+        )?;
         let parts = [
             (&rgba, 16 * n_px),
             (&depth, 4 * n_px),

@@ -110,44 +110,7 @@ fn field_arrays(field: &RbfField) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
 /// vec4s a pixel's work in progress takes (rbf.wgsl's RESUME_VEC4S).
 const RESUME_VEC4S: u64 = 6;
 
-/// Most dispatches of one RBF render: each dispatch runs at least one more point query of
-/// every pixel it stops, unless none fits the limit, which the guard refuses.
-const MAX_DISPATCHES: u32 = 1 << 20;
-
 impl Gpu {
-    /// Dispatches the RBF march until no pixel stopped at the loop limit (once on hardware),
-    /// rewriting the uniform's `round` before each dispatch after the first. Returns the
-    /// dispatches; stops early when the guard is set (a query alone passes the limit).
-    fn march_until_done(
-        &self,
-        timer: &mut crate::pass::Timer,
-        binds: &[(&str, &wgpu::Buffer)],
-        groups: (u32, u32),
-        (uniform, mut u): (&wgpu::Buffer, RbfUniform),
-        (stopped, guard): (&wgpu::Buffer, &wgpu::Buffer),
-    ) -> Result<u64, GpuError> {
-        for n in 1..=u64::from(MAX_DISPATCHES) {
-            self.submit_pass(timer, "gpu_raycast", |pass| {
-                self.dispatch_2d(pass, &self.pipes.rbf, binds, groups)
-            })?;
-            if !self.bounded() {
-                return Ok(n);
-            }
-            let parts = [(stopped, 4), (guard, 4)];
-            let (left, refused) = self.fetch_with(&parts, |got| {
-                (cast::<u32>(got[0])[0], cast::<u32>(got[1])[0])
-            })?;
-            if left == 0 || refused != 0 {
-                return Ok(n);
-            }
-            self.queue
-                .write_buffer(stopped, 0, bytemuck::bytes_of(&0u32));
-            u.round = n as u32;
-            self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&u));
-        }
-        Err(self.loop_limit_error("the RBF march (too many dispatches)"))
-    }
-
     /// The field as rbf.wgsl binds it: BVH boxes, spheres, attributes, and the blue noise.
     fn field_buffers(&self, field: &RbfField) -> [wgpu::Buffer; 4] {
         let (boxes, attrs) = field_arrays(field);
@@ -258,9 +221,14 @@ impl Gpu {
         let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
         let t = Instant::now();
         let groups = (w.div_ceil(8), h.div_ceil(8));
-        let flags = (&stopped, &guard);
+        let (pipe, flags) = ((&self.pipes.rbf, "the RBF march"), (&stopped, &guard));
+        let mut u = u;
         stats.dispatches =
-            self.march_until_done(&mut timer, &binds, groups, (&rbf_buf, u), flags)?;
+            self.dispatch_until_done(&mut timer, pipe, &binds, groups, flags, |n| {
+                // The next dispatch resumes the pixels that stopped.
+                u.round = n as u32;
+                self.queue.write_buffer(&rbf_buf, 0, bytemuck::bytes_of(&u));
+            })?;
         let guarded = self.read_image((&rgba, &depth, &guard), &mut image)?;
         push_stage(&mut stats, "raycast", ms(t));
         if guarded {

@@ -182,6 +182,29 @@ fn shared_data_sets_match_the_cpu_in_every_mode_and_projection() {
     }
 }
 
+/// The 8x8 view (one bundle) of [`clump`]s at full rate: the camera 0.6 in front of the
+/// first, viridis over [0, 1], opacity per unit distance.
+fn clump_view() -> (TransferFunction, Camera, RenderParams) {
+    let mut tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(0.0, 1.0)
+        .unwrap();
+    tf.unit_distance = 1.0;
+    let cam = Camera {
+        position: [0.0, 0.0, 0.6],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        ..Default::default()
+    };
+    let prm = RenderParams {
+        width: 8,
+        height: 8,
+        adaptive: modes()[0].1,
+        ..Default::default()
+    };
+    (tf, cam, prm)
+}
+
 /// `n` particles in a ball of radius 0.05 in front of an 8x8 view: one bundle, one cell.
 fn clump(n: usize) -> Particles {
     let mut rnd = rng(12345);
@@ -208,23 +231,7 @@ fn clump(n: usize) -> Particles {
 #[test]
 fn dense_cells_match_the_cpu_in_as_many_dispatches_as_they_need() {
     let Some(g) = gpu() else { return };
-    let mut tf = TransferFunction::preset("viridis")
-        .unwrap()
-        .with_range(0.0, 1.0)
-        .unwrap();
-    tf.unit_distance = 1.0;
-    let cam = Camera {
-        position: [0.0, 0.0, 0.6],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        ..Default::default()
-    };
-    let prm = RenderParams {
-        width: 8,
-        height: 8,
-        adaptive: modes()[0].1,
-        ..Default::default()
-    };
+    let (tf, cam, prm) = clump_view();
     for n in [3000, 12000] {
         let p = clump(n);
         let cpu = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
@@ -267,23 +274,7 @@ fn column_of_clumps(clumps: usize, n: usize) -> Particles {
 #[test]
 fn bundles_past_the_loop_limit_resume_in_later_dispatches() {
     let Some(g) = gpu() else { return };
-    let mut tf = TransferFunction::preset("viridis")
-        .unwrap()
-        .with_range(0.0, 1.0)
-        .unwrap();
-    tf.unit_distance = 1.0;
-    let cam = Camera {
-        position: [0.0, 0.0, 0.6],
-        focal_point: [0.0; 3],
-        view_up: [0.0, 1.0, 0.0],
-        ..Default::default()
-    };
-    let prm = RenderParams {
-        width: 8,
-        height: 8,
-        adaptive: modes()[0].1,
-        ..Default::default()
-    };
+    let (tf, cam, prm) = clump_view();
     // 16 clumps of 1500 particles, a span each.
     let p = column_of_clumps(16, 1500);
     let cpu = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
