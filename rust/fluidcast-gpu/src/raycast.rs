@@ -162,6 +162,36 @@ impl Gpu {
         self.finish(ctx, image)
     }
 
+    /// raycast.wgsl's `ray_state`, `chunk_sums` and `resume` for `bundles` bundles. A bundle's
+    /// rays keep their compositing state between dispatches (two vec4 each) only where a loop
+    /// limit can stop them and the state fits one binding (else the shader stops nothing, and
+    /// the loop guard refuses what passes the limit); the span's sums too, to stop between
+    /// chunks of a span, where they are small enough.
+    fn bundle_resume_buffers(&self, bundles: u64) -> [wgpu::Buffer; 3] {
+        let fits = |bytes: u64, most: u64| self.bounded() && bytes <= most.min(self.max_binding);
+        let state = 2 * 16 * 64 * bundles;
+        let sums = 4 * 128 * MAXS * bundles;
+        [
+            self.buffer(
+                "ray state",
+                if fits(state, u64::MAX) { state } else { 16 },
+                RW,
+                None,
+            ),
+            self.buffer(
+                "chunk sums",
+                if fits(sums, MAX_CHUNK_SUMS_BYTES) {
+                    sums
+                } else {
+                    16
+                },
+                RW,
+                None,
+            ),
+            self.upload("resume", &fresh_resume(bundles as usize)),
+        ]
+    }
+
     /// Stage 5: casts the rays of `b`; the image and the sample count are read back into `image`
     /// and `stats`.
     pub(crate) fn raycast(
@@ -180,27 +210,7 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
-        // A bundle's rays keep their compositing state between dispatches (two vec4 each)
-        // only where a loop limit can stop them and the state fits one binding (else the
-        // shader stops nothing, and the loop guard refuses what passes the limit); the span's
-        // sums too, to stop between chunks of a span, where they are small enough (see
-        // raycast.wgsl's `resume`).
-        let fits = |bytes: u64, most: u64| self.bounded() && bytes <= most.min(self.max_binding);
-        let state_bytes = 2 * 16 * 64 * bundles;
-        let state_bytes = if fits(state_bytes, u64::MAX) {
-            state_bytes
-        } else {
-            16
-        };
-        let state = self.buffer("ray state", state_bytes, RW, None);
-        let sums_bytes = 4 * 128 * MAXS * bundles;
-        let sums_bytes = if fits(sums_bytes, MAX_CHUNK_SUMS_BYTES) {
-            sums_bytes
-        } else {
-            16
-        };
-        let sums = self.buffer("chunk sums", sums_bytes, RW, None);
-        let resume = self.upload("resume", &fresh_resume(bundles as usize));
+        let [state, sums, resume] = self.bundle_resume_buffers(bundles);
         let binds = [
             ("P", b.frame),
             ("tf", b.tf),

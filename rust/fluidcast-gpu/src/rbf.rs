@@ -126,7 +126,7 @@ impl Gpu {
     /// dispatches (RESUME_VEC4S vec4s) only where a loop limit can stop it and the work fits
     /// one binding (else the shader stops nothing, and the guard refuses what passes the
     /// limit).
-    fn resume_buffers(&self, n_px: u64) -> (wgpu::Buffer, wgpu::Buffer) {
+    fn pixel_resume_buffers(&self, n_px: u64) -> (wgpu::Buffer, wgpu::Buffer) {
         let bytes = 16 * RESUME_VEC4S * n_px;
         let bytes = if self.bounded() && bytes <= self.max_binding {
             bytes
@@ -187,7 +187,7 @@ impl Gpu {
         };
         let t0 = Instant::now();
         let n = bvh.len();
-        let u = rbf_uniform(field, rbf, step);
+        let mut u = rbf_uniform(field, rbf, step);
         let fu = frame_uniform(&frame, params, tf, n, self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
         let rbf_buf = self.buffer(
@@ -202,7 +202,7 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let guard = self.upload("guard", &[0u32; 4]);
-        let (resume, stopped) = self.resume_buffers(n_px);
+        let (resume, stopped) = self.pixel_resume_buffers(n_px);
         push_stage(&mut stats, "upload", ms(t0));
         let binds = [
             ("P", &frame_buf),
@@ -222,7 +222,6 @@ impl Gpu {
         let t = Instant::now();
         let groups = (w.div_ceil(8), h.div_ceil(8));
         let (pipe, flags) = ((&self.pipes.rbf, "the RBF march"), (&stopped, &guard));
-        let mut u = u;
         stats.dispatches =
             self.dispatch_until_done(&mut timer, pipe, &binds, groups, flags, |n| {
                 // The next dispatch resumes the pixels that stopped.
