@@ -196,8 +196,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     let resume_chunk = workgroupUniformLoad(&wg_resume_chunk);
     // What the host could keep: the rays' state (else nothing stops; the guard refuses), and
     // the span sums (else bundles stop only before spans).
-    let resumable = arrayLength(&ray_state) >= nb * 128u;
-    let chunked = resumable && arrayLength(&chunk_sums) >= nb * 128u * MAXS;
+    // (Divided, not multiplied: nb 128 MAXS passes 32 bits from about 8K x 8K on.)
+    let resumable = arrayLength(&ray_state) / 128u >= nb;
+    let chunked = resumable && arrayLength(&chunk_sums) / (128u * MAXS) >= nb;
     let sums_at = (b * 64u + li) * 2u * MAXS;
     if (resume_at == RESUME_DONE) {
         return;

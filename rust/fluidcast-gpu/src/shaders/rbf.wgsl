@@ -409,7 +409,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     if (!run(&w, o, d, span, i, j)) {
-        let resumable = arrayLength(&resume) >= RESUME_VEC4S * P.width * P.height;
+        let resumable = arrayLength(&resume) / RESUME_VEC4S >= P.width * P.height;
         if (queries_done == 0u || !resumable) {
             // Not one query fits the driver's limit: refused (the host reads the guard).
             atomicStore(&guard[0], 1u);
