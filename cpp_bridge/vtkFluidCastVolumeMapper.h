@@ -394,9 +394,10 @@ public:
    * the smallest distance in [MinimumImageSampleDistance, MaximumImageSampleDistance] whose
    * predicted time fits (a fixed part plus a part per ray, the line through the last two
    * frames of different sizes; per ray alone after the first frame), and the GPU stretches the
-   * image over the viewport, interpolating bilinearly. Where no distance fits, the finest one predicted within a fifth of the
-   * MaximumImageSampleDistance's time: past it coarser rays would blur the image for next to
-   * no speed, the grid and the plan taking most of the frame. Still renders (allocated
+   * image over the viewport, interpolating bilinearly. Where no distance fits, the finest one
+   * predicted within a fifth of the MaximumImageSampleDistance's time: past it coarser rays
+   * would blur the image for next to no speed, the grid and the plan taking most of the
+   * frame. Still renders (allocated
    * seconds to minutes) get full resolution. Off: every frame uses ImageSampleDistance.
    * Distances are whole pixels.
    */

@@ -284,6 +284,15 @@ impl Gpu {
         self.loop_limit != u32::MAX
     }
 
+    /// A buffer for work that stops at the loop limit and resumes in the next dispatch:
+    /// `bytes` where a limit can stop the work and they fit one binding and `most`, else 16
+    /// (the shaders then see it too short to resume in, stop nothing, and the loop guard
+    /// refuses what passes the limit).
+    fn resume_buffer(&self, role: &'static str, bytes: u64, most: u64) -> wgpu::Buffer {
+        let fits = self.bounded() && bytes <= most.min(self.max_binding);
+        self.buffer(role, if fits { bytes } else { 16 }, RW, None)
+    }
+
     /// The loop budget of one invocation of a shader whose invocations loop independently
     /// (the RBF march: each pixel its own number of samples and queries). Mesa's gallivm runs
     /// invocations side by side in the lanes of a vector and counts a loop's iterations while

@@ -168,26 +168,10 @@ impl Gpu {
     /// the loop guard refuses what passes the limit); the span's sums too, to stop between
     /// chunks of a span, where they are small enough.
     fn bundle_resume_buffers(&self, bundles: u64) -> [wgpu::Buffer; 3] {
-        let fits = |bytes: u64, most: u64| self.bounded() && bytes <= most.min(self.max_binding);
-        let state = 2 * 16 * 64 * bundles;
         let sums = 4 * 128 * MAXS * bundles;
         [
-            self.buffer(
-                "ray state",
-                if fits(state, u64::MAX) { state } else { 16 },
-                RW,
-                None,
-            ),
-            self.buffer(
-                "chunk sums",
-                if fits(sums, MAX_CHUNK_SUMS_BYTES) {
-                    sums
-                } else {
-                    16
-                },
-                RW,
-                None,
-            ),
+            self.resume_buffer("ray state", 2 * 16 * 64 * bundles, u64::MAX),
+            self.resume_buffer("chunk sums", sums, MAX_CHUNK_SUMS_BYTES),
             self.upload("resume", &fresh_resume(bundles as usize)),
         ]
     }

@@ -127,13 +127,7 @@ impl Gpu {
     /// one binding (else the shader stops nothing, and the guard refuses what passes the
     /// limit).
     fn pixel_resume_buffers(&self, n_px: u64) -> (wgpu::Buffer, wgpu::Buffer) {
-        let bytes = 16 * RESUME_VEC4S * n_px;
-        let bytes = if self.bounded() && bytes <= self.max_binding {
-            bytes
-        } else {
-            16
-        };
-        let resume = self.buffer("rbf resume", bytes, RW, None);
+        let resume = self.resume_buffer("rbf resume", 16 * RESUME_VEC4S * n_px, u64::MAX);
         (resume, self.upload("rbf stopped", &[0u32; 4]))
     }
 

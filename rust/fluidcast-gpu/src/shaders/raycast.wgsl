@@ -94,10 +94,9 @@ fn span_tail(span: Span) -> u32 {
     return (span.n + 1u) + (2u * span.n + 2u * span.count + 20u);
 }
 
-/// Iterations of the chunks from particle reference `c0` of `ref_count` on.
-fn chunks_cost(span: Span, ref_count: u32, c0: u32) -> u32 {
-    let left = ref_count - min(c0, ref_count);
-    return ((left + CHUNK - 1u) / CHUNK) * (span.count + 3u) + left * (span.n + 2u);
+/// Iterations of all the chunks of a span of `ref_count` particle references.
+fn chunks_cost(span: Span, ref_count: u32) -> u32 {
+    return ((ref_count + CHUNK - 1u) / CHUNK) * (span.count + 3u) + ref_count * (span.n + 2u);
 }
 
 /// How many of the span's first n (<= 64) samples, at span_z[m], lie below z (or at or below
@@ -244,7 +243,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         }
         if (span.superpixel == 0u) {
             ref_count = span_refs(span.first, span.count);
-            let whole = span_head(span) + chunks_cost(span, ref_count, 0u) + span_tail(span);
+            let whole = span_head(span) + chunks_cost(span, ref_count) + span_tail(span);
             if (resumable && !chunked && s > s0 && budget + whole > P.loop_limit) {
                 // Stop before this span; the next dispatch resumes here.
                 suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s, 0u);
