@@ -6,15 +6,17 @@ VTK window and ParaView's representation draw the same image of one shared frame
 The frame: DATA's ARRAY (magnitude) at 200x150 on white, a fixed colour map and opacity
 function, error tolerance 0.1 (coarse enough that the plan's switches show), without the
 probe (with it, a frame whose supports are this few pixels wide is rendered at full rate,
-where no plan switch shows). Per option
-(mode, field, tolerance, probe, relaxation, strict bound, bundle, depth samples, sampling
-scale, backend, level of detail, tiles, iso-surfaces, RBF post and pre, noise, seed, step,
-shadows, shadow samples, samples per pixel) the three images must agree within 2/255 per
-channel, and the option must move the image by more than that from the image it is compared against
-(the base frame; for RBF pre and shadows the RBF post image; for spp the shadows'), so
-that a front-end that drops the option fails. Options that keep the image by design check
-what they must change instead: the GPU backend the device the frame rendered on, tiles the
-tile count (the representation reports them as FluidCastLastDevice, FluidCastLastTiles).
+where no plan switch shows). Per option (mode, field, tolerance, probe, relaxation, strict
+bound, bundle, depth samples, sampling scale, backend, level of detail, tiles, iso-surfaces,
+RBF post and pre, noise, seed, step, shadows, shadow samples, samples per pixel; RBF,
+shadows and iso-surfaces on the GPU) the three images must agree within 2/255 per channel,
+and the option must move the image by more than that from the image it is compared against
+(the base frame; for RBF pre and shadows the RBF post image; for spp the shadows'), so that
+a front-end that drops the option fails. Options that keep the image by design check what
+they must change instead: the GPU backend the device the frame rendered on (and, with the
+RBF field, shadows or iso-surfaces, the image of the same option on the CPU within 2/255),
+tiles the tile count (the representation reports them as FluidCastLastDevice,
+FluidCastLastTiles).
 Exit code 0 pass, 1 fail, 77 skipped (data not present).
 """
 import json
@@ -167,7 +169,9 @@ def cli_image(name, extra):
            os.path.join(out, "tf.json"), "--range", f"{lut.RGBPoints[0]!r},{lut.RGBPoints[-4]!r}",
            "--camera", os.path.join(out, "camera.json"), "--size", f"{W}x{H}",
            "--opacity-unit-distance", "0.1", "--background", "1,1,1",
-           "--backend", "cpu", "--specular-power", str(SPECULAR_POWER), *extra, "-o", png]
+           "--specular-power", str(SPECULAR_POWER), *extra, "-o", png]
+    if "--backend" not in extra:
+        cmd[-2:-2] = ["--backend", "cpu"]
     if "--error-tolerance" not in extra:
         cmd[-2:-2] = ["--error-tolerance", str(TOLERANCE)]
     if PROBE_ON in cmd:
@@ -251,6 +255,16 @@ OPTIONS = [
      lambda m: (rbf_vtk(m, shadows=True), m.SetShadowSamples(4)),
      {**rbf_pv(shadows=True), "FluidCastShadowSamples": 4}, "shadows"),
     ("backend_gpu", [], lambda m: m.SetBackend(2), {"FluidCastBackend": "GPU"}, "device"),
+    # The GPU backend with the RBF field, shadows and iso-surfaces: each front-end's image on
+    # the GPU (lavapipe in CI) within 2/255 of the CPU's image of the same option.
+    ("gpu_rbf_post", ["--field", "rbf", "--backend", "gpu"],
+     lambda m: (rbf_vtk(m), m.SetBackend(2)), {**rbf_pv(), "FluidCastBackend": "GPU"},
+     "gpu:rbf_post"),
+    ("gpu_shadows", ["--field", "rbf", "--shadows", "--light", "0,1,0", "--backend", "gpu"],
+     lambda m: (rbf_vtk(m, shadows=True), m.SetBackend(2)),
+     {**rbf_pv(shadows=True), "FluidCastBackend": "GPU"}, "gpu:shadows"),
+    ("gpu_iso", ["--iso", "0.5", "--backend", "gpu"], lambda m: (iso_vtk(m), m.SetBackend(2)),
+     {"FluidCastIsosurfaceValues": [0.5], "FluidCastBackend": "GPU"}, "gpu:iso"),
     ("tiles", ["--tiles", "4"], lambda m: m.SetTiles(4), {"FluidCastTiles": 4}, "tiles"),
 ]
 
@@ -332,6 +346,12 @@ for name, cli_opts, set_vtk, pv_props, against in OPTIONS:
         devices = (mapper.GetLastDevice(), pv_last("Device"))
         line += f"; devices {devices}"
         ok = ok and all(d.startswith("GPU") for d in devices)
+    elif against.startswith("gpu:"):
+        cpu = images[against[4:]]
+        devices = (mapper.GetLastDevice(), pv_last("Device"))
+        vs_cpu = max(worst(x, y) for x, y in zip(images[name], cpu))
+        line += f"; devices {devices}; vs the CPU's {against[4:]} {vs_cpu}/255"
+        ok = ok and vs_cpu <= AGREE and all(d.startswith("GPU") for d in devices)
     elif against == "tiles":
         tiles = (mapper.GetLastTiles(), pv_last("Tiles"))
         line += f"; tiles {tiles}; vs base {worst(p, images['base'][2])}"

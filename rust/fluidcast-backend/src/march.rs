@@ -177,9 +177,16 @@ pub(crate) fn render(
         stages.push(("refit", ms(t)));
     }
     let depths = [&params.depth_limit, &params.depth_near].map(|d| d.as_deref().unwrap_or(&[]));
+    let gpu = gpu.filter(|_| matches!(march.field, Marched::Rbf(_)));
+    // The device is part of the view: passes marched on the GPU are not averaged with the
+    // CPU's (nor served as the CPU's image once complete) when the backend changes.
     let view = format!(
-        "{camera:?}{tf:?}{march:?}{}x{}{:?}{}",
-        params.width, params.height, params.support_depths, built.key
+        "{camera:?}{tf:?}{march:?}{}x{}{:?}{} on {}",
+        params.width,
+        params.height,
+        params.support_depths,
+        built.key,
+        if gpu.is_some() { "gpu" } else { "cpu" }
     );
     let key = fingerprint(&view, &depths);
     let (field_bytes, bvh_bytes) = (built.field.memory_bytes(), built.field.bvh().memory_bytes());
@@ -187,7 +194,6 @@ pub(crate) fn render(
     let most = march.progressive_passes.max(spp);
     let acc = state.accumulated.take().filter(|a| a.key == key);
     let done = acc.as_ref().map_or(0, |a| a.passes);
-    let gpu = gpu.filter(|_| matches!(march.field, Marched::Rbf(_)));
     if let Some(a) = acc.as_ref().filter(|a| a.passes >= most) {
         let image = a.image.clone();
         state.accumulated = acc;

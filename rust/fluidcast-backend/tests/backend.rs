@@ -264,3 +264,45 @@ fn adaptivity_is_skipped_where_it_cannot_pay() {
     let near = draw(&r, &p, &cam, &tf, &big).unwrap();
     assert!(!skipped(&near), "{:?}", near.notes);
 }
+
+/// Progressive RBF passes are the device's own: a scene that accumulated passes on the GPU
+/// and is then rendered on the CPU (ParaView's Backend switched) shows the CPU's first pass,
+/// not the GPU's passes averaged with it, and back on the GPU the GPU's first pass again.
+#[test]
+fn progressive_passes_do_not_cross_devices() {
+    use fluidcast_backend::{March, Marched, RbfOptions, RbfRenderParams, RenderPlan, Scene};
+    let r = match Renderer::open(Backend::Gpu, None) {
+        Ok(r) => r,
+        Err(e) if !require_gpu() => return eprintln!("SKIPPED: {e}"),
+        Err(e) => panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}"),
+    };
+    let (p, tf, cam, prm) = scene();
+    let plan = RenderPlan {
+        params: prm,
+        march: Some(March {
+            field: Marched::Rbf(RbfOptions::default()),
+            params: RbfRenderParams::default(),
+            progressive_passes: 4,
+            time_refit: false,
+        }),
+        ..Default::default()
+    };
+    let fresh = |r: &Renderer| {
+        let mut s = Scene::new(p.clone(), cam.clone(), tf.clone());
+        r.render(&mut s, &plan).unwrap().image.rgba
+    };
+    let (cpu, gpu) = (Renderer::cpu(), &r);
+    let mut scene = Scene::new(p.clone(), cam.clone(), tf.clone());
+    let g1 = gpu.render(&mut scene, &plan).unwrap().image.rgba;
+    let g2 = gpu.render(&mut scene, &plan).unwrap().image.rgba;
+    assert_ne!(g1, g2, "the second GPU render added no pass");
+    let c1 = cpu.render(&mut scene, &plan).unwrap().image.rgba;
+    assert_eq!(c1, fresh(&cpu), "the CPU render reused the GPU's passes");
+    let g1_again = gpu.render(&mut scene, &plan).unwrap().image.rgba;
+    assert_eq!(
+        g1_again,
+        fresh(gpu),
+        "the GPU render reused the CPU's passes"
+    );
+    assert_eq!(g1_again, g1);
+}
