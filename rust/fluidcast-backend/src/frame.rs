@@ -79,7 +79,7 @@ impl Renderer {
             });
         }
         let (mode, note) = plan.mode_for(self.requested);
-        notes.extend(note.map(str::to_string));
+        notes.extend(crate::device_note(note, self.gpu().is_some()).map(str::to_string));
         let full_rate;
         let (skip, known_work) = skip_adaptivity(scene, plan, mode)?;
         let plan = match skip {
@@ -182,9 +182,12 @@ impl Renderer {
                     Some(_) => "the GPU backend",
                     None => "the adaptive grid renderer",
                 };
-                render_over_surfaces(particles, camera, tf, params, what, |p| {
-                    self.render_volume(particles, surface, scene, p)
-                })?
+                let surfaces = |p: &RenderParams| match self.gpu() {
+                    Some(g) => Ok(g.render_surfaces(particles, camera, tf, p)?),
+                    None => Ok(render_reference(particles, camera, tf, p)?),
+                };
+                let volume = |p: &RenderParams| self.render_volume(particles, surface, scene, p);
+                render_over_surfaces::<BackendError>(params, what, surfaces, volume)?
             }
             Mode::Adaptive => self.render_volume(particles, surface, scene, params)?,
         })

@@ -29,7 +29,8 @@ pub mod work;
 pub use frame::{tile_particles, Rendered};
 
 pub use plan::{
-    March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES, SURFACES_OVER_ADAPTIVE,
+    device_note, March, Marched, Mode, RenderPlan, Tiles, REFERENCE_FOR_SURFACES, SURFACES_ON_GPU,
+    SURFACES_OVER_ADAPTIVE,
 };
 pub use scene::{LodReport, Scene};
 pub use settings::{check_property, Setting, SettingError, SETTINGS};

@@ -114,6 +114,18 @@ pub const REFERENCE_FOR_SURFACES: &str = "rendering with the reference ray caste
 /// The note [`RenderPlan::mode_for`] gives when iso-surfaces are drawn in the adaptive mode.
 pub const SURFACES_OVER_ADAPTIVE: &str = "iso-surfaces are found exactly along each ray on the CPU; the adaptive renderer draws only the volume in front of them (when the volume is asked for)";
 
+/// [`SURFACES_OVER_ADAPTIVE`] where the renderer is on the GPU, which finds the surfaces too.
+pub const SURFACES_ON_GPU: &str = "iso-surfaces are found exactly along each ray on the GPU (in single precision); the adaptive renderer draws only the volume in front of them (when the volume is asked for)";
+
+/// The note of [`RenderPlan::mode_for`] for a renderer that is (`on_gpu`) or is not on the
+/// GPU: which device finds the surfaces is known once the backend is open.
+pub fn device_note(note: Option<&'static str>, on_gpu: bool) -> Option<&'static str> {
+    match note {
+        Some(SURFACES_OVER_ADAPTIVE) if on_gpu => Some(SURFACES_ON_GPU),
+        n => n,
+    }
+}
+
 impl RenderPlan {
     /// Refuses what the renderer does not draw yet, naming the part of the plan
     /// ([`BackendError::Refused`]): level of detail with iso-surfaces of another array; the

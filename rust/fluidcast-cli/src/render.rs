@@ -4,8 +4,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use fluidcast_backend::{
-    defaults, Backend, BackendError, March, Marched, Mode, PlanItem, RenderPlan, RenderStats,
-    Rendered, Renderer, Scene, Tiles,
+    defaults, device_note, Backend, BackendError, March, Marched, Mode, PlanItem, RenderPlan,
+    RenderStats, Rendered, Renderer, Scene, Tiles,
 };
 use fluidcast_image::Image;
 use fluidcast_io::{Arrays, Frame, Input};
@@ -621,6 +621,14 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
     };
     early.check().map_err(|e| option_error(a, e))?;
     let (mode, note) = plan.mode_for(a.sampling.backend);
+    // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
+    let open_mode = if plan.march.is_some() {
+        Mode::Adaptive
+    } else {
+        mode
+    };
+    let renderer = open_backend(&a.sampling, open_mode)?;
+    let note = device_note(note, renderer.gpu().is_some());
     if let (Some(n), None) = (note, &plan.march) {
         let what = if a.surface.on() {
             "--iso"
@@ -634,13 +642,6 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
         };
         eprintln!("note: {what}: {n}{how}");
     }
-    // The marched field on the CPU, or on the GPU with --backend gpu (auto: a hardware GPU).
-    let mode = if plan.march.is_some() {
-        Mode::Adaptive
-    } else {
-        mode
-    };
-    let renderer = open_backend(&a.sampling, mode)?;
     Ok((plan, renderer))
 }
 

@@ -243,3 +243,75 @@ fn surfaces_in_the_adaptive_mode_are_noted() {
         "{err}"
     );
 }
+
+/// `--iso 0.5 --backend gpu` finds the surfaces on the GPU: the note says so, the stats
+/// time the GPU's surface walk (`gpu_surfaces_ms` where the adapter has timestamps, and its
+/// dispatches), and the image is the CPU's within 2/255 with Z within one depth sample. With
+/// `--volume` the GPU's adaptive volume in front of them matches too.
+#[test]
+fn gpu_backend_finds_the_surfaces_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = common::sample();
+    let path = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let render = |extra: &[&str], out: &str| {
+        let mut a = vec!["render", sample.to_str().unwrap(), "-o", out];
+        a.extend_from_slice(&["--size", "120x90", "--iso", "0.5"]);
+        a.extend_from_slice(extra);
+        common::run(&a)
+    };
+    let (gpu, stats) = (path("gpu.exr"), path("gpu.json"));
+    let (code, _, err) = render(&["--backend", "gpu", "--stats", &stats], &gpu);
+    if code != Some(0)
+        && err.contains("no GPU adapter")
+        && std::env::var("FLUIDCAST_REQUIRE_GPU").as_deref() != Ok("1")
+    {
+        return eprintln!("SKIPPED: {err}");
+    }
+    assert_eq!(code, Some(0), "{err}");
+    assert!(
+        err.contains("note: --iso: iso-surfaces are found exactly along each ray on the GPU"),
+        "{err}"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert!(s["timings"]["surfaces_ms"].as_f64().is_some(), "{s}");
+    assert!(s["dispatches"].as_u64().unwrap() >= 1, "{s}");
+    let cpu = path("cpu.exr");
+    let (code, _, err) = render(&["--backend", "cpu"], &cpu);
+    assert_eq!(code, Some(0), "{err}");
+    let (c, g) = (
+        Image::read(Path::new(&cpu)).unwrap(),
+        Image::read(Path::new(&gpu)).unwrap(),
+    );
+    assert!(
+        common::max_diff(&c, &g) <= 2.0 / 255.0,
+        "{}",
+        common::max_diff(&c, &g)
+    );
+    let drawn = c.depth.iter().filter(|z| z.is_finite()).count();
+    assert!(drawn > 1000, "{drawn} pixels show a surface");
+    // Logarithmic samples: one step at depth z is z ((far/near)^(1/N) - 1).
+    let (near, far) = (s["near"].as_f64().unwrap(), s["far"].as_f64().unwrap());
+    let n = s["depth_samples_per_ray"].as_f64().unwrap();
+    for (a, b) in c.depth.iter().zip(&g.depth) {
+        assert_eq!(a.is_finite(), b.is_finite());
+        if a.is_finite() {
+            let step = f64::from(*a) * ((far / near).powf(1.0 / n) - 1.0);
+            assert!(f64::from((a - b).abs()) <= step, "Z {a} vs {b}");
+        }
+    }
+    let (gv, cv) = (path("gv.exr"), path("cv.exr"));
+    let (code, _, err) = render(&["--backend", "gpu", "--volume"], &gv);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, _, err) = render(&["--backend", "cpu", "--mode", "adaptive", "--volume"], &cv);
+    assert_eq!(code, Some(0), "{err}");
+    let (c, g) = (
+        Image::read(Path::new(&cv)).unwrap(),
+        Image::read(Path::new(&gv)).unwrap(),
+    );
+    assert!(
+        common::max_diff(&c, &g) <= 2.0 / 255.0,
+        "{}",
+        common::max_diff(&c, &g)
+    );
+}

@@ -6,7 +6,7 @@
 use bytemuck::{Pod, Zeroable};
 use fluidcast_grid::Cell;
 use fluidcast_rbf::Colouring;
-use fluidcast_render::{Noise, RenderParams};
+use fluidcast_render::{IsoField, Noise, RenderParams};
 use fluidcast_sph::{FieldKind, Kernel};
 use fluidcast_view::{TransferFunction, ViewFrame};
 
@@ -232,6 +232,63 @@ pub(crate) struct RbfUniform {
 
 const _: () = assert!(std::mem::size_of::<RbfUniform>() == 112);
 
+/// surface.wgsl's uniform `S` (same field order).
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub(crate) struct SurfaceUniform {
+    /// The iso values (the first `n_values`).
+    pub(crate) values: [f32; 4],
+    /// A solid linear RGB colour (w = 1), or the transfer function's (w = 0).
+    pub(crate) colour: [f32; 4],
+    /// Toward the light (world, unit; w = 1), or a headlight (w = 0).
+    pub(crate) light: [f32; 4],
+    pub(crate) ambient: f32,
+    pub(crate) diffuse: f32,
+    pub(crate) specular: f32,
+    pub(crate) specular_power: f32,
+    pub(crate) n_values: u32,
+    /// `ISO_*`: [`iso_code`].
+    pub(crate) iso: u32,
+    /// 1: the iso attribute is bound as its own array, else it is the rendered one.
+    pub(crate) has_b: u32,
+    pub(crate) opacity: f32,
+    /// Dispatches of this render before this one (surface.wgsl's `resume`).
+    pub(crate) round: u32,
+    pub(crate) pad: [u32; 3],
+}
+
+const _: () = assert!(std::mem::size_of::<SurfaceUniform>() == 96);
+
+/// Most iso values the GPU's surfaces take (surface.wgsl's `S.values`, a vec4).
+pub const MAX_ISO_VALUES: usize = 4;
+
+/// The code of an iso field (`ISO_*`).
+pub(crate) fn iso_code(f: &IsoField) -> u32 {
+    match f {
+        IsoField::Colour => 0,
+        IsoField::Density => 1,
+        IsoField::Attribute(_) => 2,
+    }
+}
+
+/// Constants surface.wgsl shares with the host: the iso field codes by their names, and the
+/// most iso values.
+pub(crate) fn surface_prelude() -> String {
+    let mut s = format!("const MAX_ISO_VALUES: u32 = {MAX_ISO_VALUES}u;\n");
+    for f in [
+        IsoField::Colour,
+        IsoField::Density,
+        IsoField::Attribute(None),
+    ] {
+        s += &format!(
+            "const {}: u32 = {}u;\n",
+            wgsl_name("ISO", f.name()),
+            iso_code(&f)
+        );
+    }
+    s
+}
+
 /// The code of an RBF colouring (`RBF_*`): its index in [`Colouring::ALL`].
 pub(crate) fn colouring_code(c: Colouring) -> u32 {
     Colouring::ALL.iter().position(|&x| x == c).unwrap_or(0) as u32
@@ -350,12 +407,19 @@ mod tests {
 
     /// The WGSL struct `name`: its size and its members' offsets, as naga lays them out.
     fn wgsl_layout(name: &str) -> (u32, Vec<(String, u32)>) {
+        let shader = match name {
+            "Surf" => format!(
+                "{}{}",
+                surface_prelude(),
+                include_str!("shaders/surface.wgsl")
+            ),
+            _ => format!("{}{}", rbf_prelude(), include_str!("shaders/rbf.wgsl")),
+        };
         let src = format!(
-            "{}{}{}{}",
+            "{}{}{}",
             wgsl_prelude(),
-            rbf_prelude(),
             include_str!("shaders/common.wgsl"),
-            include_str!("shaders/rbf.wgsl")
+            shader
         );
         let module = naga::front::wgsl::parse_str(&src).unwrap();
         let mut layouter = naga::proc::Layouter::default();
@@ -461,6 +525,24 @@ mod tests {
                 shadow_samples,
                 light,
                 ambient
+            ]
+        );
+        same_layout!(
+            SurfaceUniform,
+            "Surf",
+            [
+                values,
+                colour,
+                light,
+                ambient,
+                diffuse,
+                specular,
+                specular_power,
+                n_values,
+                iso,
+                has_b,
+                opacity,
+                round
             ]
         );
         same_layout!(

@@ -11,6 +11,8 @@
 //! | error analysis per cell | `plan.wgsl: analyse` | `fluidcast_plan` `cell_bounds` |
 //! | greedy levels, super-pixels, merging per bundle | `plan.wgsl: greedy` | `plan_bundle` |
 //! | bundle-coherent ray casting (Alg. 2) | `raycast.wgsl` | `render_adaptive`'s caster |
+//! | iso-surfaces: crossings refined on the exact sum, shaded ([`Gpu::render_surfaces`]) | `surface.wgsl` (on the grid above) | `render_reference`'s surface walk |
+//! | the RBF field's passes ([`Gpu::render_rbf`]) | `rbf.wgsl` | `render_rbf` |
 //!
 //! The depth range and the sample depths are found on the host in f64, exactly as the CPU
 //! renderer finds them ([`fluidcast_grid::support_depth_range`]); the host reads back two
@@ -23,7 +25,8 @@
 //! says why when there is none, and [`Gpu::open`] takes an [`AdapterChoice`].
 //!
 //! Modules mirror the CPU crates stage by stage: `grid` (fluidcast-grid), `sort` (its counting
-//! sort), `plan` (fluidcast-plan), `raycast` (fluidcast-render's caster), with `frame`
+//! sort), `plan` (fluidcast-plan), `raycast` (fluidcast-render's caster), `surface` (its
+//! surface walk), `rbf` (its RBF march), with `frame`
 //! running them in order, `layout` holding the structs the host shares with the WGSL (size and
 //! offsets checked against naga's layout) and `pass` the pipelines, whose bindings are looked
 //! up by the WGSL global's name.
@@ -38,6 +41,7 @@ mod plan;
 mod raycast;
 mod rbf;
 mod sort;
+mod surface;
 
 use std::collections::HashMap;
 use std::sync::Mutex;
@@ -90,6 +94,9 @@ pub enum GpuError {
         /// The stage that needs more iterations.
         stage: &'static str,
     },
+    /// More iso values than the GPU's surfaces take.
+    #[error("{0} iso values: the GPU draws at most {max} iso-surfaces at once; render with --backend cpu or give fewer values", max = layout::MAX_ISO_VALUES)]
+    IsoValues(usize),
     /// A transfer function with more control points than the shader's table.
     #[error("the transfer function has {0} control points; the GPU renderer takes at most {max} per table", max = MAX_TF_POINTS)]
     TransferFunction(usize),
@@ -114,6 +121,7 @@ struct Pipelines {
     greedy: Pipe,
     raycast: Pipe,
     rbf: Pipe,
+    surface: Pipe,
 }
 
 impl Pipelines {
@@ -134,6 +142,12 @@ impl Pipelines {
             include_str!("shaders/rbf.wgsl")
         );
         let rbf = staged("rbf", &rbf_src)?;
+        let surface_src = format!(
+            "{}{}",
+            layout::surface_prelude(),
+            include_str!("shaders/surface.wgsl")
+        );
+        let surface = staged("surface", &surface_src)?;
         let scan = Shader::new(device, "scan", include_str!("shaders/scan.wgsl"))?;
         let sort = Shader::new(device, "sort", include_str!("shaders/sort.wgsl"))?;
         Ok(Pipelines {
@@ -151,6 +165,7 @@ impl Pipelines {
             greedy: plan.pipe(device, "greedy"),
             raycast: raycast.pipe(device, "main"),
             rbf: rbf.pipe(device, "main"),
+            surface: surface.pipe(device, "main"),
         })
     }
 }

@@ -152,14 +152,14 @@ impl Gpu {
     pub(crate) fn dispatch_until_done(
         &self,
         timer: &mut Timer,
-        (pipe, stage): (&Pipe, &'static str),
+        (pipe, stage, timed): (&Pipe, &'static str, &'static str),
         binds: &[(&str, &wgpu::Buffer)],
         groups: (u32, u32),
         (stopped, guard): (&wgpu::Buffer, &wgpu::Buffer),
         mut next: impl FnMut(u64),
     ) -> Result<u64, GpuError> {
         for n in 1..=u64::from(MAX_DISPATCHES) {
-            self.submit_pass(timer, "gpu_raycast", |pass| {
+            self.submit_pass(timer, timed, |pass| {
                 self.dispatch_2d(pass, pipe, binds, groups)
             })?;
             if !self.bounded() {

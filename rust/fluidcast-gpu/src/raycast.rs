@@ -218,7 +218,7 @@ impl Gpu {
         let flags = (&resume, b.guard);
         stats.dispatches += self.dispatch_until_done(
             timer,
-            (pipe, "the ray casting"),
+            (pipe, "the ray casting", "gpu_raycast"),
             &binds,
             groups,
             flags,
@@ -252,7 +252,7 @@ impl Gpu {
 /// raycast.wgsl's `depth_limit`: the far depths of all `n` pixels, then the near ones, when
 /// either is given (empty otherwise). f32::INFINITY is fine in WGSL storage (the shader only
 /// compares against it).
-fn depth_limits(params: &RenderParams, n: usize) -> Vec<f32> {
+pub(crate) fn depth_limits(params: &RenderParams, n: usize) -> Vec<f32> {
     match (&params.depth_limit, &params.depth_near) {
         (None, None) => Vec::new(),
         (far, near) => {

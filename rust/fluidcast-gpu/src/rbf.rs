@@ -180,9 +180,8 @@ impl Gpu {
             return Ok((image, stats));
         };
         let t0 = Instant::now();
-        let n = bvh.len();
         let mut u = rbf_uniform(field, rbf, step);
-        let fu = frame_uniform(&frame, params, tf, n, self.divergent_loop_limit());
+        let fu = frame_uniform(&frame, params, tf, bvh.len(), self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
         let rbf_buf = self.buffer(
             "rbf",
@@ -215,7 +214,8 @@ impl Gpu {
         let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
         let t = Instant::now();
         let groups = (w.div_ceil(8), h.div_ceil(8));
-        let (pipe, flags) = ((&self.pipes.rbf, "the RBF march"), (&stopped, &guard));
+        let pipe = (&self.pipes.rbf, "the RBF march", "gpu_raycast");
+        let flags = (&stopped, &guard);
         stats.dispatches =
             self.dispatch_until_done(&mut timer, pipe, &binds, groups, flags, |n| {
                 // The next dispatch resumes the pixels that stopped.

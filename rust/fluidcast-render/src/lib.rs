@@ -54,7 +54,7 @@ pub use rbf::{
     HASH_MUL, HASH_SEED, MAX_OPTICAL_DEPTH, MAX_RBF_STEPS, PICK_STREAM, SHADOW_STREAM,
 };
 pub use reference::render_reference;
-pub use surface::{IsoField, SurfaceError, Surfaces};
+pub use surface::{add_normal_aovs, IsoField, SurfaceError, Surfaces};
 pub use tiles::{
     render_in_tiles, tile_particles_within, MIN_TILE_BYTES, TILING_BYTES_PER_PARTICLE,
     VIEW_BYTES_PER_PARTICLE,

@@ -1,5 +1,6 @@
 //! Opaque iso-surfaces over a volume rendered by another renderer (the adaptive one, on the
-//! CPU or the GPU): the surfaces are found exactly per ray by the reference caster, and the
+//! CPU or the GPU): the surfaces are found exactly per ray (by the reference caster on the
+//! CPU, by the GPU's surface walk on the GPU), and the
 //! volume renderer sees the first surface as opaque geometry (its per-pixel depth limit),
 //! which its sampling plan already honours — no cell behind a surface is sampled and the
 //! error bound covers only what is composited in front of it. The front volume is then
@@ -11,45 +12,41 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use fluidcast_image::Image;
-use fluidcast_sph::Particles;
-use fluidcast_view::{Camera, TransferFunction};
 
 use crate::surface::{SurfaceError, Surfaces};
-use crate::{ms, render_reference, RenderError, RenderParams, RenderStats};
+use crate::{ms, RenderError, RenderParams, RenderStats};
 
-/// Renders `params.surfaces` with the reference caster and, when they ask for the volume,
-/// the volume with `volume` (given `params` without surfaces and with the surfaces' depths
-/// as its depth limit), composited in front of them. `what` names the volume renderer in
-/// errors.
+/// Renders `params.surfaces` with `surfaces` (given `params` with surfaces only: the
+/// reference caster on the CPU, or the GPU's) and, when they ask for the volume, the volume
+/// with `volume` (given `params` without surfaces and with the surfaces' depths as its depth
+/// limit), composited in front of them. `what` names the volume renderer in errors.
 pub fn render_over_surfaces<E: From<RenderError>>(
-    particles: &Particles,
-    camera: &Camera,
-    tf: &TransferFunction,
     params: &RenderParams,
     what: &'static str,
+    surfaces: impl FnOnce(&RenderParams) -> Result<(Image, RenderStats), E>,
     volume: impl FnOnce(&RenderParams) -> Result<(Image, RenderStats), E>,
 ) -> Result<(Image, RenderStats), E> {
     let t0 = Instant::now();
-    let Some(surfaces) = params.surfaces.as_deref() else {
+    let Some(asked) = params.surfaces.as_deref() else {
         return volume(params);
     };
     if params.volume_lighting.is_some() {
         return Err(RenderError::VolumeLighting(what).into());
     }
-    if surfaces.volume && surfaces.opacity < 1.0 {
+    if asked.volume && asked.opacity < 1.0 {
         return Err(RenderError::from(SurfaceError::Translucent(what)).into());
     }
     let only = RenderParams {
         surfaces: Some(Arc::new(Surfaces {
             volume: false,
-            ..surfaces.clone()
+            ..asked.clone()
         })),
         ..params.clone()
     };
-    let (mut image, mut stats) = render_reference(particles, camera, tf, &only)?;
+    let (mut image, surface_stats) = surfaces(&only)?;
     let surfaces_ms = ms(t0);
-    if !surfaces.volume {
-        return Ok((image, stats));
+    if !asked.volume {
+        return Ok((image, surface_stats));
     }
     let limit: Arc<[f32]> = match &params.depth_limit {
         Some(d) => d.iter().zip(&image.depth).map(|(a, b)| a.min(*b)).collect(),
@@ -60,14 +57,17 @@ pub fn render_over_surfaces<E: From<RenderError>>(
         depth_limit: Some(limit),
         ..params.clone()
     };
-    let (front, front_stats) = volume(&front_params)?;
+    let (front, mut stats) = volume(&front_params)?;
     for (s, f) in image.rgba.iter_mut().zip(&front.rgba) {
         *s = [0, 1, 2, 3].map(|c| f[c] + (1.0 - f[3]) * s[c]);
     }
     image.aovs.extend(front.aovs);
-    // The front volume's counts and stages, the surfaces' time first.
-    stats = front_stats;
+    // The front volume's counts and stages, the surfaces' time (and GPU stage) first.
     stats.stages.insert(0, ("surfaces", surfaces_ms));
+    if let Some(g) = surface_stats.stages.iter().find(|s| s.0 == "gpu_surfaces") {
+        stats.stages.insert(1, *g);
+    }
+    stats.dispatches += surface_stats.dispatches;
     if let Some(t) = stats.stages.iter_mut().find(|s| s.0 == "total") {
         t.1 = ms(t0);
     }

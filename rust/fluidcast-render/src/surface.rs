@@ -214,7 +214,7 @@ impl Point {
 
 /// Adds the first surfaces' world normals, one per pixel, to `image` as the AOVs
 /// `normal_x`, `normal_y`, `normal_z` (0 where a pixel has no surface).
-pub(crate) fn add_normal_aovs(image: &mut fluidcast_image::Image, normals: &[[f32; 3]]) {
+pub fn add_normal_aovs(image: &mut fluidcast_image::Image, normals: &[[f32; 3]]) {
     for (a, name) in ["normal_x", "normal_y", "normal_z"].into_iter().enumerate() {
         image
             .aovs
