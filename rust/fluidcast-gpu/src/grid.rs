@@ -270,9 +270,12 @@ impl Gpu {
         self.queue.submit([enc.finish()]);
         let cells_n = self.counters(counters)?.cells;
         ctx.stats.cells = cells_n as u64;
-        if cells_n as u64 * BOUND_BYTES > self.max_binding {
-            let most = self.max_binding / BOUND_BYTES;
-            return Err(GpuError::TooManyCells(cells_n as u64, most));
+        // The cells themselves (32 bytes each); the plan's analysis checks its own buffers.
+        if cells_n as u64 * 32 > self.max_binding {
+            return Err(GpuError::TooManyCells(
+                cells_n as u64,
+                self.max_binding / 32,
+            ));
         }
         ctx.u.n_cells = cells_n;
         ctx.update(self);

@@ -252,9 +252,13 @@ pub(crate) struct SurfaceUniform {
     /// 1: the iso attribute is bound as its own array, else it is the rendered one.
     pub(crate) has_b: u32,
     pub(crate) opacity: f32,
-    /// Dispatches of this render before this one (surface.wgsl's `resume`).
+    /// Dispatches of this band before this one (surface.wgsl's `resume`).
     pub(crate) round: u32,
-    pub(crate) pad: [u32; 3],
+    /// The band's first row of bundles, and its rows (the dispatches cover a band at a time,
+    /// so that the walks in progress fit one binding).
+    pub(crate) band_y0: u32,
+    pub(crate) band_rows: u32,
+    pub(crate) pad: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<SurfaceUniform>() == 96);
@@ -542,7 +546,9 @@ mod tests {
                 iso,
                 has_b,
                 opacity,
-                round
+                round,
+                band_y0,
+                band_rows
             ]
         );
         same_layout!(

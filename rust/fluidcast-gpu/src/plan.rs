@@ -49,6 +49,9 @@ impl Gpu {
         params: &RenderParams,
     ) -> Result<Plan, GpuError> {
         let (nc, nb) = (grid.cells_n as u64, ctx.bundles as u64);
+        if nc * BOUND_BYTES > self.max_binding {
+            return Err(GpuError::TooManyCells(nc, self.max_binding / BOUND_BYTES));
+        }
         let flags: Vec<u32> = match plan_surface(particles, surface, &params.adaptive) {
             Some(s) if params.adaptive.uses_surface_cells() => {
                 s.iter().map(|&f| f as u32).collect()

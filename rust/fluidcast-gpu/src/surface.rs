@@ -16,12 +16,16 @@ use fluidcast_view::{Camera, Light, TransferFunction};
 
 use crate::frame::{check_supported, FrameCtx};
 use crate::layout::{iso_code, SurfaceUniform, MAX_ISO_VALUES};
+use crate::pass::Timer;
 use crate::raycast::depth_limits;
 use crate::{cast, push_stage, Gpu, GpuError, RW};
 
 /// vec4s a pixel's walk in progress takes (surface.wgsl's RESUME_VEC4S: 9 and the pending
 /// crossings, 5 per iso value, 4 to a vec4).
 const RESUME_VEC4S: u64 = 9 + (5 * MAX_ISO_VALUES as u64).div_ceil(4);
+
+/// The most bytes of walks in progress kept at once (a band of rows of bundles).
+const MAX_RESUME_BYTES: u64 = 256 << 20;
 
 /// The surfaces to draw, or why the GPU does not draw them: surfaces alone (the volume in
 /// front of opaque ones is the adaptive renderer's, [`fluidcast_render::render_over_surfaces`]),
@@ -81,7 +85,9 @@ fn surface_uniform(s: &Surfaces) -> SurfaceUniform {
         has_b: u32::from(matches!(s.field, IsoField::Attribute(Some(_)))),
         opacity: s.opacity as f32,
         round: 0,
-        pad: [0; 3],
+        band_y0: 0,
+        band_rows: 0,
+        pad: 0,
     }
 }
 
@@ -97,6 +103,7 @@ struct SurfaceBuffers {
     normal: wgpu::Buffer,
     resume: wgpu::Buffer,
     stopped: wgpu::Buffer,
+    guard: wgpu::Buffer,
 }
 
 impl Gpu {
@@ -133,6 +140,7 @@ impl Gpu {
         };
         let t = Instant::now();
         let mut su = surface_uniform(surfaces);
+        su.band_rows = self.band_rows(w, params.grid.bundle, ctx.u.bundles_y);
         let io = self.surface_buffers(&ctx, &su, params, tf, n_px);
         let binds = [
             ("P", &io.frame),
@@ -148,7 +156,7 @@ impl Gpu {
             ("out_rgba", &io.rgba),
             ("out_depth", &io.depth),
             ("out_normal", &io.normal),
-            ("guard", &ctx.guard),
+            ("guard", &io.guard),
             ("resume", &io.resume),
             ("stopped", &io.stopped),
         ];
@@ -157,28 +165,62 @@ impl Gpu {
         self.bundle_ranges(&mut pass, &ctx, &grid)?;
         drop(pass);
         self.queue.submit([enc.finish()]);
-        let groups = (ctx.u.bundles_x, ctx.u.bundles_y);
-        let pipe = (
-            &self.pipes.surface,
-            "the iso-surfaces' field sums",
-            "gpu_surfaces",
-        );
-        let flags = (&io.stopped, &ctx.guard);
-        ctx.stats.dispatches =
-            self.dispatch_until_done(&mut ctx.timer, pipe, &binds, groups, flags, |n| {
-                su.round = n as u32;
-                self.queue
-                    .write_buffer(&io.uniform, 0, bytemuck::bytes_of(&su));
-            })?;
-        let outputs = (&io.rgba, &io.depth, &io.normal, &ctx.guard);
-        let guarded = self.read_surfaces(outputs, &mut image)?;
+        let bundles = (ctx.u.bundles_x, ctx.u.bundles_y);
+        let flags = (&io.stopped, &io.guard);
+        ctx.stats.dispatches = self.walk_bands(&mut ctx.timer, bundles, &binds, flags, su)?;
+        let refused = self.read_surfaces(&io, &ctx.guard, &mut image)?;
         push_stage(&mut ctx.stats, "surfaces", ms(t));
-        if guarded {
-            return Err(self.loop_limit_error("the iso-surfaces' field sums"));
+        if let Some(stage) = refused {
+            return Err(self.loop_limit_error(stage));
         }
         ctx.stats.plan = None;
         let stats = self.finish(ctx, Image::new(0, 0))?.stats;
         Ok((image, stats))
+    }
+
+    /// Rows of bundles a band of the walk covers: where a loop limit can stop the walks, as
+    /// many as keep those in progress within one binding (at least one: a row that does not
+    /// fit gets no room, and what passes the limit is refused); else all.
+    fn band_rows(&self, width: u32, bundle: u32, bundles_y: u32) -> u32 {
+        if !self.bounded() {
+            return bundles_y;
+        }
+        let per_row = 16 * RESUME_VEC4S * u64::from(width) * u64::from(bundle);
+        let fit = (self.max_binding.min(MAX_RESUME_BYTES) / per_row).max(1);
+        fit.min(u64::from(bundles_y)) as u32
+    }
+
+    /// Walks the rays band by band of `su.band_rows` rows of bundles, each band dispatched
+    /// until none of its walks stopped; returns the dispatches.
+    fn walk_bands(
+        &self,
+        timer: &mut Timer,
+        (bundles_x, bundles_y): (u32, u32),
+        binds: &[(&str, &wgpu::Buffer)],
+        flags: (&wgpu::Buffer, &wgpu::Buffer),
+        mut su: SurfaceUniform,
+    ) -> Result<u64, GpuError> {
+        let Some(&(_, uniform)) = binds.iter().find(|b| b.0 == "S") else {
+            return Err(GpuError::Device(
+                "the surfaces' uniform is not bound".into(),
+            ));
+        };
+        let stage = (
+            &self.pipes.surface,
+            "the iso-surfaces' field sums",
+            "gpu_surfaces",
+        );
+        let (rows, mut dispatches) = (su.band_rows.max(1), 0);
+        for y0 in (0..bundles_y).step_by(rows as usize) {
+            (su.band_y0, su.round) = (y0, 0);
+            self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&su));
+            let groups = (bundles_x, rows.min(bundles_y - y0));
+            dispatches += self.dispatch_until_done(timer, stage, binds, groups, flags, |n| {
+                su.round = n as u32;
+                self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&su));
+            })?;
+        }
+        Ok(dispatches)
     }
 
     /// What surface.wgsl binds besides the grid: the frame's uniform with each lane's share
@@ -194,6 +236,8 @@ impl Gpu {
     ) -> SurfaceBuffers {
         let mut u = ctx.u;
         u.loop_limit = self.divergent_loop_limit();
+        let band_px = u64::from(su.band_rows) * u64::from(u.bundle) * u64::from(u.width);
+        let band_bytes = 16 * RESUME_VEC4S * band_px.min(n_px);
         let iso_b: Vec<f32> = match params.surfaces.as_deref().map(|s| &s.field) {
             Some(IsoField::Attribute(Some(b))) => b.to_vec(),
             _ => vec![0.0],
@@ -212,26 +256,30 @@ impl Gpu {
             rgba: self.buffer("rgba", 16 * n_px, RW, None),
             depth: self.buffer("depth", 4 * n_px, RW, None),
             normal: self.buffer("normals", 16 * n_px, RW, None),
-            resume: self.resume_buffer("surface resume", 16 * RESUME_VEC4S * n_px, u64::MAX),
+            resume: self.resume_buffer("surface resume", band_bytes, MAX_RESUME_BYTES),
             stopped: self.upload("surface stopped", &[0u32; 4]),
+            guard: self.upload("surface guard", &[0u32; 4]),
         }
     }
 
     /// Reads the surfaces' image back into `image` (depth: no surface at infinity) with the
-    /// normal AOVs; true when a shader invocation hit the loop guard.
+    /// normal AOVs; the stage whose loop guard fired, if one did (the grid's, on `grid_guard`,
+    /// or the surfaces' own).
     fn read_surfaces(
         &self,
-        (rgba, depth, normal, guard): (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+        io: &SurfaceBuffers,
+        grid_guard: &wgpu::Buffer,
         image: &mut Image,
-    ) -> Result<bool, GpuError> {
+    ) -> Result<Option<&'static str>, GpuError> {
         let n_px = image.rgba.len() as u64;
         let parts = [
-            (rgba, 16 * n_px),
-            (depth, 4 * n_px),
-            (normal, 16 * n_px),
-            (guard, 4),
+            (&io.rgba, 16 * n_px),
+            (&io.depth, 4 * n_px),
+            (&io.normal, 16 * n_px),
+            (grid_guard, 4),
+            (&io.guard, 4),
         ];
-        let (normals, guarded) = self.fetch_with(&parts, |got| {
+        let (normals, refused) = self.fetch_with(&parts, |got| {
             image.rgba = cast(got[0]);
             image.depth = cast::<f32>(got[1]);
             for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
@@ -239,9 +287,16 @@ impl Gpu {
             }
             let normals: Vec<[f32; 4]> = cast(got[2]);
             let normals: Vec<[f32; 3]> = normals.iter().map(|n| [n[0], n[1], n[2]]).collect();
-            (normals, cast::<u32>(got[3])[0] != 0)
+            let refused = if cast::<u32>(got[3])[0] != 0 {
+                Some("the grid (a particle's cells)")
+            } else if cast::<u32>(got[4])[0] != 0 {
+                Some("the iso-surfaces' field sums")
+            } else {
+                None
+            };
+            (normals, refused)
         })?;
         add_normal_aovs(image, &normals);
-        Ok(guarded)
+        Ok(refused)
     }
 }

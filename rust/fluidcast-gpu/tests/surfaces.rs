@@ -236,3 +236,25 @@ fn too_many_iso_values_are_refused() {
         .unwrap_err();
     assert!(e.to_string().contains("at most 4 iso-surfaces"), "{e}");
 }
+
+/// The shared double dam break at 1024x768: on lavapipe (128 MiB bindings) the walks in
+/// progress do not fit one binding, so the rays are walked in two bands of rows of bundles;
+/// the image is still the reference's.
+#[test]
+fn large_images_walk_in_bands() {
+    let Some(g) = gpu() else { return };
+    let Some((p, tf, cam)) = shared_ddb() else {
+        return;
+    };
+    let prm = params(1024, 768, Surfaces::default());
+    let stats = check(
+        &g,
+        "1024x768 in bands",
+        (&p, &cam, &tf),
+        &prm,
+        (50_000, 0.001),
+    );
+    if g.is_software() {
+        assert!(stats.dispatches >= 2, "{} dispatches", stats.dispatches);
+    }
+}

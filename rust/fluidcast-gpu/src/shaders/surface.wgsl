@@ -21,10 +21,10 @@ struct Surf {
     iso: u32,             // ISO_COLOUR, ISO_DENSITY or ISO_ATTRIBUTE
     has_b: u32,           // 1: the iso attribute from `iso_b`, else the rendered one
     opacity: f32,
-    round: u32,           // dispatches of this render before this one (see `resume`)
+    round: u32,           // dispatches of this band before this one (see `resume`)
+    band_y0: u32,         // the band's first row of bundles (dispatches cover bands of rows)
+    band_rows: u32,       // its rows of bundles
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 };
 
 @group(0) @binding(2) var<uniform> S: Surf;
@@ -44,8 +44,9 @@ struct Surf {
 @group(0) @binding(13) var<storage, read_write> guard: array<atomic<u32>>;
 // A pixel whose walk would pass P.loop_limit (a software driver's limit) in one invocation
 // stops before the field evaluation that would pass it and resumes there in the host's next
-// dispatch (S.round > 0), the image unchanged: its walk at resume[RESUME_VEC4S px ..];
-// stopped[0] the pixels that stopped in this dispatch.
+// dispatch of its band (S.round > 0), the image unchanged: its walk at
+// resume[RESUME_VEC4S p ..], p its index within the band; stopped[0] the pixels that stopped
+// in this dispatch.
 @group(0) @binding(14) var<storage, read_write> resume: array<vec4<f32>>;
 @group(0) @binding(15) var<storage, read_write> stopped: array<atomic<u32>>;
 
@@ -450,7 +451,10 @@ fn refine_step(w: ptr<function, Walk>, r: RayCtx) -> bool {
     let gb = (*w).rgb;
     let z = falsi(a, ga, b, gb);
     let it = (*w).rit & 255u;
-    if (b - a <= 1.0e-5 * ((*w).rz1 - (*w).rz0) || it >= REFINE_ITERATIONS) {
+    // Done at 1e-5 of the bracket it started from, or where f32 cannot split it further
+    // (two units in the last place).
+    let tol = max(1.0e-5 * ((*w).rz1 - (*w).rz0), 2.4e-7 * abs(b));
+    if (b - a <= tol || it >= REFINE_ITERATIONS) {
         push_pending(w, z, ((*w).flags & 4u) != 0u);
         (*w).phase = (*w).ret;
         return true;
@@ -755,8 +759,8 @@ fn f2u(x: f32) -> u32 {
     return bitcast<u32>(x);
 }
 
-fn save_walk(px: u32, w: Walk) {
-    let r = RESUME_VEC4S * px;
+fn save_walk(p: u32, w: Walk) {
+    let r = RESUME_VEC4S * p;
     resume[r] = vec4<f32>(u2f(w.phase), u2f(w.k), u2f(w.vi), u2f(w.ret));
     resume[r + 1u] = vec4<f32>(w.fa, w.fb, w.fc, u2f(w.flags));
     resume[r + 2u] = vec4<f32>(w.ra, w.rga, w.rb, w.rgb);
@@ -773,8 +777,8 @@ fn save_walk(px: u32, w: Walk) {
     }
 }
 
-fn load_walk(px: u32) -> Walk {
-    let r = RESUME_VEC4S * px;
+fn load_walk(p: u32) -> Walk {
+    let r = RESUME_VEC4S * p;
     var w: Walk;
     let v0 = resume[r];
     let v1 = resume[r + 1u];
@@ -829,9 +833,10 @@ fn load_walk(px: u32) -> Walk {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
-    let b = wg.y * P.bundles_x + wg.x;
+    let by = wg.y + S.band_y0;
+    let b = by * P.bundles_x + wg.x;
     let i = wg.x * P.bundle + lid.x;
-    let j = wg.y * P.bundle + lid.y;
+    let j = by * P.bundle + lid.y;
     if (lid.x >= P.bundle || lid.y >= P.bundle || i >= P.width || j >= P.height) {
         return;
     }
@@ -851,7 +856,9 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         limit = depth_limit[px];
         near = depth_limit[P.width * P.height + px];
     }
-    let resumable = arrayLength(&resume) / RESUME_VEC4S >= P.width * P.height;
+    // The pixel's index within its band, where its walk is kept.
+    let rp = (j - S.band_y0 * P.bundle) * P.width + i;
+    let resumable = arrayLength(&resume) / RESUME_VEC4S >= S.band_rows * P.bundle * P.width;
     var w: Walk;
     if (S.round == 0u) {
         w = fresh_walk(b);
@@ -859,7 +866,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             w.phase = PH_DONE; // an empty range composites nothing (Compositor::between)
         }
     } else {
-        w = load_walk(px);
+        w = load_walk(rp);
         if (w.phase == PH_DONE) {
             return;
         }
@@ -876,7 +883,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 atomicStore(&guard[0], 1u);
             }
             if (resumable) {
-                save_walk(px, w);
+                save_walk(rp, w);
             }
             atomicAdd(&stopped[0], 1u);
             return;
@@ -887,6 +894,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     out_depth[px] = w.zfirst;
     out_normal[px] = vec4<f32>(w.normal, 0.0);
     if (resumable && P.loop_limit != 0xffffffffu) {
-        resume[RESUME_VEC4S * px] = vec4<f32>(u2f(PH_DONE), 0.0, 0.0, 0.0);
+        resume[RESUME_VEC4S * rp] = vec4<f32>(u2f(PH_DONE), 0.0, 0.0, 0.0);
     }
 }
