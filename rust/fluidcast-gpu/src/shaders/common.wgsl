@@ -99,6 +99,21 @@ fn over_budget(next: u32) -> bool {
     return next > P.loop_limit - min(ticks, P.loop_limit);
 }
 
+// Set when `take_iteration` found the budget spent: the work under way stops unfinished.
+var<private> out_of_budget: bool = false;
+
+/// One more loop iteration, or false (and out_of_budget) when the invocation has none left:
+/// for loops whose trip count is only known as they run (the RBF march's queries, the
+/// surface walk's sums).
+fn take_iteration() -> bool {
+    if (over_budget(1u)) {
+        out_of_budget = true;
+        return false;
+    }
+    tick(1u);
+    return true;
+}
+
 /// Index of this workgroup in a dispatch that may be folded into two dimensions.
 fn group_index(wg: vec3<u32>, nw: vec3<u32>) -> u32 {
     return wg.y * nw.x + wg.x;

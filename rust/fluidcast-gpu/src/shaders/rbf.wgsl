@@ -55,20 +55,9 @@ const PH_PICK: u32 = 1u;
 const PH_SHADOW: u32 = 2u;
 const PH_DONE: u32 = 3u;
 
-// Set when a point query stopped because the loop budget ran out (its sum is then unused).
-var<private> out_of_budget: bool = false;
-// Point queries completed by this invocation.
+// Point queries completed by this invocation (a query that ran out of budget, see
+// `take_iteration` in common.wgsl, has its sum unused).
 var<private> queries_done: u32 = 0u;
-
-/// One more loop iteration, or false (and out_of_budget) when the invocation has none left.
-fn take_iteration() -> bool {
-    if (over_budget(1u)) {
-        out_of_budget = true;
-        return false;
-    }
-    tick(1u);
-    return true;
-}
 
 fn mix32(x0: u32) -> u32 {
     var x = x0;

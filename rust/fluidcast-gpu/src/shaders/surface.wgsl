@@ -66,18 +66,6 @@ const PH_BEYOND: u32 = 5u;  // refine the crossings on either side of the extrem
 const PH_SHADE: u32 = 6u;   // composite the crossings before sample k - 1
 const PH_DONE: u32 = 7u;
 
-var<private> out_of_budget: bool = false;
-
-/// One more loop iteration, or false (and out_of_budget) when the invocation has none left.
-fn take_iteration() -> bool {
-    if (over_budget(1u)) {
-        out_of_budget = true;
-        return false;
-    }
-    tick(1u);
-    return true;
-}
-
 /// The walk of one ray: where it is, the field at the last three samples (f[k-3], f[k-2],
 /// f[k-1]), the refinement and the extremum search under way, the crossings pending (by
 /// depth; bit i of `rising` for pend[i]) and the compositing state.
