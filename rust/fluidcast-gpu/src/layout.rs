@@ -412,7 +412,7 @@ mod tests {
     /// The WGSL struct `name`: its size and its members' offsets, as naga lays them out.
     fn wgsl_layout(name: &str) -> (u32, Vec<(String, u32)>) {
         let shader = match name {
-            "Surf" => format!(
+            "Surf" | "Walk" => format!(
                 "{}{}",
                 surface_prelude(),
                 include_str!("shaders/surface.wgsl")
@@ -461,6 +461,13 @@ mod tests {
             let real = members.iter().filter(|m| !m.0.starts_with("pad")).count();
             assert_eq!(checked, real, "{} has members without a Rust field", $wgsl);
         }};
+    }
+
+    /// The host sizes the buffer of walks in progress by surface.wgsl's `Walk` (no padding).
+    #[test]
+    fn a_walk_in_progress_is_as_large_as_the_host_allots() {
+        let (size, _) = wgsl_layout("Walk");
+        assert_eq!(u64::from(size), crate::surface::WALK_BYTES);
     }
 
     #[test]

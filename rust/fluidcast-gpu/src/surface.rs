@@ -20,9 +20,9 @@ use crate::pass::Timer;
 use crate::raycast::depth_limits;
 use crate::{cast, push_stage, Gpu, GpuError, RW};
 
-/// vec4s a pixel's walk in progress takes (surface.wgsl's RESUME_VEC4S: 9 and the pending
-/// crossings, 5 per iso value, 4 to a vec4).
-const RESUME_VEC4S: u64 = 9 + (5 * MAX_ISO_VALUES as u64).div_ceil(4);
+/// Bytes of a pixel's walk in progress (surface.wgsl's `Walk`: 36 words and the pending
+/// crossings, 5 per iso value; its size is checked against naga's layout in layout.rs).
+pub(crate) const WALK_BYTES: u64 = 4 * (36 + 5 * MAX_ISO_VALUES as u64);
 
 /// The most bytes of walks in progress kept at once (a band of rows of bundles).
 const MAX_RESUME_BYTES: u64 = 256 << 20;
@@ -185,7 +185,7 @@ impl Gpu {
         if !self.bounded() {
             return bundles_y;
         }
-        let per_row = 16 * RESUME_VEC4S * u64::from(width) * u64::from(bundle);
+        let per_row = WALK_BYTES * u64::from(width) * u64::from(bundle);
         let fit = (self.max_binding.min(MAX_RESUME_BYTES) / per_row).max(1);
         fit.min(u64::from(bundles_y)) as u32
     }
@@ -237,7 +237,7 @@ impl Gpu {
         let mut u = ctx.u;
         u.loop_limit = self.divergent_loop_limit();
         let band_px = u64::from(su.band_rows) * u64::from(u.bundle) * u64::from(u.width);
-        let band_bytes = 16 * RESUME_VEC4S * band_px.min(n_px);
+        let band_bytes = WALK_BYTES * band_px.min(n_px);
         let iso_b: Vec<f32> = match params.surfaces.as_deref().map(|s| &s.field) {
             Some(IsoField::Attribute(Some(b))) => b.to_vec(),
             _ => vec![0.0],

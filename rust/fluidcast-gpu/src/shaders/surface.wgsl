@@ -45,13 +45,12 @@ struct Surf {
 // A pixel whose walk would pass P.loop_limit (a software driver's limit) in one invocation
 // stops before the field evaluation that would pass it and resumes there in the host's next
 // dispatch of its band (S.round > 0), the image unchanged: its walk at
-// resume[RESUME_VEC4S p ..], p its index within the band; stopped[0] the pixels that stopped
+// resume[p], p its index within the band; stopped[0] the pixels that stopped
 // in this dispatch.
-@group(0) @binding(14) var<storage, read_write> resume: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read_write> resume: array<Walk>;
 @group(0) @binding(15) var<storage, read_write> stopped: array<atomic<u32>>;
 
 const PENDING: u32 = 5u * MAX_ISO_VALUES; // crossings found but not yet composited
-const RESUME_VEC4S: u32 = 9u + (PENDING + 3u) / 4u;
 const UNDEF: f32 = -3.0e38;   // a CSPH quotient where no particle reaches
 const GOLDEN: f32 = 0.618033988749895;
 const REFINE_ITERATIONS: u32 = 40u;
@@ -99,8 +98,8 @@ struct Walk {
     rising: u32,
     colour: vec3<f32>,
     trans: f32,
+    normal: vec3<f32>, // (after colour and trans: 16-byte aligned without padding)
     zfirst: f32,
-    normal: vec3<f32>,
     pend: array<f32, PENDING>,
 };
 
@@ -739,86 +738,6 @@ fn fresh_walk(b: u32) -> Walk {
     return w;
 }
 
-fn u2f(x: u32) -> f32 {
-    return bitcast<f32>(x);
-}
-
-fn f2u(x: f32) -> u32 {
-    return bitcast<u32>(x);
-}
-
-fn save_walk(p: u32, w: Walk) {
-    let r = RESUME_VEC4S * p;
-    resume[r] = vec4<f32>(u2f(w.phase), u2f(w.k), u2f(w.vi), u2f(w.ret));
-    resume[r + 1u] = vec4<f32>(w.fa, w.fb, w.fc, u2f(w.flags));
-    resume[r + 2u] = vec4<f32>(w.ra, w.rga, w.rb, w.rgb);
-    resume[r + 3u] = vec4<f32>(w.rz0, w.rz1, w.rv, u2f(w.rit));
-    resume[r + 4u] = vec4<f32>(w.ga, w.gb, w.gc, w.gd);
-    resume[r + 5u] = vec4<f32>(w.gfc, w.gfd, u2f(w.git), w.ze);
-    resume[r + 6u] = vec4<f32>(w.fe, u2f(w.np), u2f(w.rising), 0.0);
-    resume[r + 7u] = vec4<f32>(w.colour, w.trans);
-    resume[r + 8u] = vec4<f32>(w.zfirst, w.normal);
-    for (var i = 0u; i < PENDING; i = i + 4u) {
-        tick(1u);
-        resume[r + 9u + i / 4u] = vec4<f32>(w.pend[i], w.pend[i + 1u], w.pend[i + 2u],
-                                            w.pend[i + 3u]);
-    }
-}
-
-fn load_walk(p: u32) -> Walk {
-    let r = RESUME_VEC4S * p;
-    var w: Walk;
-    let v0 = resume[r];
-    let v1 = resume[r + 1u];
-    let v2 = resume[r + 2u];
-    let v3 = resume[r + 3u];
-    let v4 = resume[r + 4u];
-    let v5 = resume[r + 5u];
-    let v6 = resume[r + 6u];
-    let v7 = resume[r + 7u];
-    let v8 = resume[r + 8u];
-    w.phase = f2u(v0.x);
-    w.k = f2u(v0.y);
-    w.vi = f2u(v0.z);
-    w.ret = f2u(v0.w);
-    w.fa = v1.x;
-    w.fb = v1.y;
-    w.fc = v1.z;
-    w.flags = f2u(v1.w);
-    w.ra = v2.x;
-    w.rga = v2.y;
-    w.rb = v2.z;
-    w.rgb = v2.w;
-    w.rz0 = v3.x;
-    w.rz1 = v3.y;
-    w.rv = v3.z;
-    w.rit = f2u(v3.w);
-    w.ga = v4.x;
-    w.gb = v4.y;
-    w.gc = v4.z;
-    w.gd = v4.w;
-    w.gfc = v5.x;
-    w.gfd = v5.y;
-    w.git = f2u(v5.z);
-    w.ze = v5.w;
-    w.fe = v6.x;
-    w.np = f2u(v6.y);
-    w.rising = f2u(v6.z);
-    w.colour = v7.xyz;
-    w.trans = v7.w;
-    w.zfirst = v8.x;
-    w.normal = v8.yzw;
-    for (var i = 0u; i < PENDING; i = i + 4u) {
-        tick(1u);
-        let p = resume[r + 9u + i / 4u];
-        w.pend[i] = p.x;
-        w.pend[i + 1u] = p.y;
-        w.pend[i + 2u] = p.z;
-        w.pend[i + 3u] = p.w;
-    }
-    return w;
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let by = wg.y + S.band_y0;
@@ -846,7 +765,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     }
     // The pixel's index within its band, where its walk is kept.
     let rp = (j - S.band_y0 * P.bundle) * P.width + i;
-    let resumable = arrayLength(&resume) / RESUME_VEC4S >= S.band_rows * P.bundle * P.width;
+    let resumable = arrayLength(&resume) >= S.band_rows * P.bundle * P.width;
     var w: Walk;
     if (S.round == 0u) {
         w = fresh_walk(b);
@@ -854,7 +773,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             w.phase = PH_DONE; // an empty range composites nothing (Compositor::between)
         }
     } else {
-        w = load_walk(rp);
+        w = resume[rp];
         if (w.phase == PH_DONE) {
             return;
         }
@@ -871,7 +790,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
                 atomicStore(&guard[0], 1u);
             }
             if (resumable) {
-                save_walk(rp, w);
+                resume[rp] = w;
             }
             atomicAdd(&stopped[0], 1u);
             return;
@@ -882,6 +801,6 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     out_depth[px] = w.zfirst;
     out_normal[px] = vec4<f32>(w.normal, 0.0);
     if (resumable && P.loop_limit != 0xffffffffu) {
-        resume[RESUME_VEC4S * rp] = vec4<f32>(u2f(PH_DONE), 0.0, 0.0, 0.0);
+        resume[rp].phase = PH_DONE;
     }
 }
