@@ -41,9 +41,9 @@ pub use fluidcast_rbf::{
     AttributeMap, Colouring, RbfError, RbfOptions, DEFAULT_LEAF_SIZE, MAX_LEAF_SIZE,
 };
 pub use fluidcast_render::{
-    crop_to_box, support_depth_extent, GridParams, IsoField, Noise, PlanParams, Progress,
-    RbfRenderParams, RbfShadows, RenderError, RenderParams, RenderStats, Surfaces, MAX_CELL,
-    MAX_SIDE, MIN_TILE_BYTES,
+    crop_to_box, support_depth_extent, GridParams, ImageOutput, IsoField, Noise, PlanParams,
+    Progress, RbfRenderParams, RbfShadows, RenderError, RenderParams, RenderStats, Surfaces,
+    MAX_CELL, MAX_SIDE, MIN_TILE_BYTES,
 };
 
 /// Where the adaptive renderer runs.

@@ -332,6 +332,12 @@ pub fn stats_json(s: &RenderStats, file: &Path, time: Option<f64>) -> serde_json
     let mut v = json!({"file": file, "time": time, "timings": stages, "particles": s.particles, "particles_visible": s.particles_visible,
            "samples": s.samples, "tiles": s.tiles, "culled": s.culled, "interpolated": s.interpolated, "dispatches": s.dispatches, "depth_samples_per_ray": s.depth_samples, "near": s.near, "far": s.far,
            "image": {"width": s.width, "height": s.height}});
+    // The GPU's traffic: bytes each way, command buffers, and waits for the device.
+    let t = &s.transfers;
+    if t.submits > 0 {
+        v["transfers"] = json!({"uploaded_bytes": t.uploaded_bytes, "readback_bytes": t.readback_bytes,
+            "submits": t.submits, "waits": t.waits});
+    }
     // The process' peak resident memory so far (all frames up to this one).
     if let Some(b) = fluidcast_mem::peak_resident() {
         v["peak_memory_bytes"] = json!(b);

@@ -332,6 +332,8 @@ mod ffi {
         /// Renders a `width x height` image, rows top first. `depth_limit` is empty or one
         /// view depth per pixel (+inf = nothing opaque). Writes premultiplied RGBA
         /// (`4 * width * height`) and the view depth where opacity passed 1/2 (+inf never).
+        /// On the GPU backend the colour is read back in half precision and the depth is
+        /// not read back (+inf everywhere): a window shows neither more.
         fn render(
             self: &mut Renderer,
             width: u32,
@@ -932,6 +934,9 @@ impl Renderer {
                 .ok_or("fluidcast: configure() was not called")?;
             let name = self.name();
             let mut plan = plan_of(&s, (width, height), depth_limit, &camera)?;
+            // The window shows colour at 8 bits and the mapper draws no depth: the GPU reads
+            // back half-precision colour only (the CPU fills in everything anyway).
+            plan.params.output = fluidcast_backend::ImageOutput::DISPLAY;
             plan.params.support_depths = self.part.support_depths;
             plan.params.progress = self.control.clone();
             if let Some((lo, hi)) = self.part.crop {

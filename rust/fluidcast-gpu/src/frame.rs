@@ -7,7 +7,7 @@ use fluidcast_grid::Cell;
 use fluidcast_image::Image;
 use fluidcast_plan::{PlanError, PlanStats};
 use fluidcast_render::{
-    interpolate, ms, validate, RenderError, RenderParams, RenderStats, Rendered,
+    interpolate, ms, validate, ImageOutput, RenderError, RenderParams, RenderStats, Rendered,
 };
 use fluidcast_sph::Particles;
 use fluidcast_view::{Camera, TransferFunction, ViewFrame};
@@ -53,8 +53,7 @@ pub(crate) struct FrameCtx<'g> {
 impl FrameCtx<'_> {
     /// Writes the uniform again after a stage filled in more of it.
     pub(crate) fn update(&self, g: &Gpu) {
-        g.queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&self.u));
+        g.write(&self.frame_buf, bytemuck::bytes_of(&self.u));
     }
 }
 
@@ -94,6 +93,8 @@ impl Gpu {
         tf: &TransferFunction,
         n: usize,
     ) -> FrameCtx<'_> {
+        // The frame's traffic counts from here.
+        self.take_traffic();
         let u = frame_uniform(frame, params, tf, n, self.loop_limit);
         let d = params.grid.bundle;
         let bundles = params.width.div_ceil(d) * params.height.div_ceil(d);
@@ -164,9 +165,14 @@ impl Gpu {
         match refine {
             Some(e) => {
                 let mut samples = 0;
-                // A pass reads back a whole image: its pixels go into the refined one.
+                // A pass reads back a whole image: its pixels go into the refined one, which
+                // decides on their full-precision colour and depth.
                 let mut cast = |p: &RenderParams, into: &mut Image| {
                     let mut pass = Image::new(p.width, p.height);
+                    let p = &RenderParams {
+                        output: ImageOutput::FULL,
+                        ..p.clone()
+                    };
                     self.raycast(&casting, p, timer, stats, &mut pass)?;
                     interpolate::keep_cast_pixels(p, &pass, into);
                     samples += stats.samples;
@@ -194,6 +200,7 @@ impl Gpu {
     pub(crate) fn finish(&self, mut ctx: FrameCtx, image: Image) -> Result<Rendered, GpuError> {
         self.finish_timers(&ctx.timer, &mut ctx.stats)?;
         ctx.stats.gpu_memory_bytes = self.memory_bytes();
+        ctx.stats.transfers = self.take_traffic();
         push_stage(&mut ctx.stats, "total", ms(ctx.t0));
         Ok(Rendered {
             image,

@@ -47,7 +47,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use bytemuck::Pod;
-use fluidcast_render::{RenderError, RenderStats};
+use fluidcast_render::{RenderError, RenderStats, Transfers};
 use pass::{Pipe, Shader};
 
 pub use adapter::{list_adapters, AdapterChoice, ADAPTER_ENV};
@@ -122,6 +122,7 @@ struct Pipelines {
     raycast: Pipe,
     rbf: Pipe,
     surface: Pipe,
+    pack_half: Pipe,
 }
 
 impl Pipelines {
@@ -150,6 +151,7 @@ impl Pipelines {
         let surface = staged("surface", &surface_src)?;
         let scan = Shader::new(device, "scan", include_str!("shaders/scan.wgsl"))?;
         let sort = Shader::new(device, "sort", include_str!("shaders/sort.wgsl"))?;
+        let readback = Shader::new(device, "readback", include_str!("shaders/readback.wgsl"))?;
         Ok(Pipelines {
             view: grid.pipe(device, "view"),
             footprint: grid.pipe(device, "footprint"),
@@ -166,6 +168,7 @@ impl Pipelines {
             raycast: raycast.pipe(device, "main"),
             rbf: rbf.pipe(device, "main"),
             surface: surface.pipe(device, "main"),
+            pack_half: readback.pipe(device, "pack_half"),
         })
     }
 }
@@ -184,6 +187,11 @@ pub struct Gpu {
     buffers: Mutex<HashMap<&'static str, wgpu::Buffer>>,
     /// One frame at a time: the kept buffers are shared.
     frame_lock: Mutex<()>,
+    /// The current frame's traffic between host and device (reset when a frame starts).
+    traffic: Mutex<Transfers>,
+    /// A fingerprint of the particles in the "world particles" buffer, which a frame of the
+    /// same particles uses again without uploading them ([`grid::particles_key`]).
+    world_key: Mutex<Option<u128>>,
     /// Largest storage buffer binding (bytes).
     max_binding: u64,
     /// Loop iterations a shader invocation may run (`SOFTWARE_LOOP_LIMIT` on CPU adapters,
@@ -254,6 +262,8 @@ impl Gpu {
             timestamps,
             buffers: Default::default(),
             frame_lock: Mutex::new(()),
+            traffic: Default::default(),
+            world_key: Default::default(),
             max_binding: limits
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),
@@ -357,12 +367,43 @@ impl Gpu {
             cache.insert(role, b);
         }
         let b = cache[role].clone();
+        drop(cache);
         if let Some(d) = data {
-            if !d.is_empty() {
-                self.queue.write_buffer(&b, 0, d);
-            }
+            self.write(&b, d);
         }
         b
+    }
+
+    /// Writes `data` at the start of `b` (counted as uploaded).
+    fn write(&self, b: &wgpu::Buffer, data: &[u8]) {
+        if !data.is_empty() {
+            self.queue.write_buffer(b, 0, data);
+            self.count(|t| t.uploaded_bytes += data.len() as u64);
+        }
+    }
+
+    /// Submits `enc`'s commands (counted).
+    fn submit(&self, enc: wgpu::CommandEncoder) {
+        self.queue.submit([enc.finish()]);
+        self.count(|t| t.submits += 1);
+    }
+
+    fn count(&self, f: impl FnOnce(&mut Transfers)) {
+        f(&mut self
+            .traffic
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner));
+    }
+
+    /// The traffic counted since the last call, which starts a new count (a frame's start
+    /// and end).
+    fn take_traffic(&self) -> Transfers {
+        std::mem::take(
+            &mut self
+                .traffic
+                .lock()
+                .unwrap_or_else(std::sync::PoisonError::into_inner),
+        )
     }
 
     /// A storage buffer for `role` holding `data`.
@@ -412,7 +453,9 @@ impl Gpu {
                 enc.copy_buffer_to_buffer(b, 0, &staging, *off, bytes.next_multiple_of(4));
             }
         }
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
+        let bytes: u64 = parts.iter().map(|p| p.1).sum();
+        self.count(|t| (t.readback_bytes, t.waits) = (t.readback_bytes + bytes, t.waits + 1));
         let slice = staging.slice(..total.max(8));
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {

@@ -120,7 +120,7 @@ impl Gpu {
             let mut pass = timer.pass(&mut enc, name);
             f(&mut pass)?;
         }
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
         Ok(())
     }
 
@@ -172,8 +172,7 @@ impl Gpu {
             if left == 0 || refused != 0 {
                 return Ok(n);
             }
-            self.queue
-                .write_buffer(stopped, 0, bytemuck::bytes_of(&0u32));
+            self.write(stopped, bytemuck::bytes_of(&0u32));
             next(n);
         }
         Err(self.loop_limit_error(stage))
@@ -238,7 +237,7 @@ impl Gpu {
         );
         let mut enc = self.encoder();
         enc.resolve_query_set(q, 0..count, &resolve, 0);
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
         let t: Vec<u64> = cast(&self.fetch(&[(&resolve, 8 * count as u64)])?[0]);
         let period = self.queue.get_timestamp_period() as f64;
         for (k, name) in timer.names.iter().enumerate() {

@@ -97,7 +97,7 @@ impl Gpu {
             self.greedy(&mut pass, ctx, grid, &plan, &a, &phase)?;
         }
         drop(pass);
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
         Ok(plan)
     }
 

@@ -224,18 +224,29 @@ impl Gpu {
             flags,
             |_| {},
         )?;
+        let t = Instant::now();
+        let out = params.output;
+        let colour = match out.half_colour {
+            true => (self.pack_half(timer, &rgba, n_px)?, 8 * n_px),
+            false => (rgba, 16 * n_px),
+        };
+        let depth_bytes = if out.depth { 4 * n_px } else { 0 };
         let parts = [
-            (&rgba, 16 * n_px),
-            (&depth, 4 * n_px),
+            (&colour.0, colour.1),
+            (&depth, depth_bytes),
             (&samples, 4 * bundles),
             (b.guard, 4),
         ];
-        let t = Instant::now();
         let guarded = self.fetch_with(&parts, |got| {
-            image.rgba = cast(got[0]);
-            image.depth = cast::<f32>(got[1]);
-            for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
-                *z = f32::INFINITY;
+            image.rgba = match out.half_colour {
+                true => unpack_half(got[0]),
+                false => cast(got[0]),
+            };
+            if out.depth {
+                image.depth = cast::<f32>(got[1]);
+                for z in image.depth.iter_mut().filter(|z| **z > 1e29) {
+                    *z = f32::INFINITY;
+                }
             }
             stats.samples = cast::<u32>(got[2]).iter().map(|&s| s as u64).sum();
             cast::<u32>(got[3])[0] != 0
@@ -247,6 +258,34 @@ impl Gpu {
         }
         Ok(())
     }
+}
+
+impl Gpu {
+    /// readback.wgsl's `pack_half` over the first `n_px` pixels of `rgba`: the buffer of
+    /// their colours in half precision.
+    fn pack_half(
+        &self,
+        timer: &mut Timer,
+        rgba: &wgpu::Buffer,
+        n_px: u64,
+    ) -> Result<wgpu::Buffer, GpuError> {
+        let half = self.buffer("half rgba", 8 * n_px, RW, None);
+        let count = self.small_uniform([n_px as u32, 0, 0, 0]);
+        let binds = [("K", &count), ("rgba", rgba), ("half_rgba", &half)];
+        let groups = n_px.div_ceil(256) as u32;
+        self.submit_pass(timer, "gpu_pack", |pass| {
+            self.dispatch(pass, &self.pipes.pack_half, &binds, groups)
+        })?;
+        Ok(half)
+    }
+}
+
+/// The colours `pack_half` packed (two u32 a pixel, each two binary16), as f32.
+fn unpack_half(bytes: &[u8]) -> Vec<[f32; 4]> {
+    let bits: Vec<u16> = bytemuck::pod_collect_to_vec(bytes);
+    bits.chunks_exact(4)
+        .map(|c| [0, 1, 2, 3].map(|k| half::f16::from_bits(c[k]).to_f32()))
+        .collect()
 }
 
 /// raycast.wgsl's `depth_limit`: the far depths of all `n` pixels, then the near ones, when

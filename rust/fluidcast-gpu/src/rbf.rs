@@ -180,6 +180,7 @@ impl Gpu {
             return Ok((image, stats));
         };
         let t0 = Instant::now();
+        self.take_traffic();
         let mut u = rbf_uniform(field, rbf, step);
         let fu = frame_uniform(&frame, params, tf, bvh.len(), self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
@@ -220,7 +221,7 @@ impl Gpu {
             self.dispatch_until_done(&mut timer, pipe, &binds, groups, flags, |n| {
                 // The next dispatch resumes the pixels that stopped.
                 u.round = n as u32;
-                self.queue.write_buffer(&rbf_buf, 0, bytemuck::bytes_of(&u));
+                self.write(&rbf_buf, bytemuck::bytes_of(&u));
             })?;
         let guarded = self.read_image((&rgba, &depth, &guard), &mut image)?;
         push_stage(&mut stats, "raycast", ms(t));
@@ -230,6 +231,7 @@ impl Gpu {
         self.finish_timers(&timer, &mut stats)?;
         push_stage(&mut stats, "total", ms(t0));
         stats.gpu_memory_bytes = self.memory_bytes();
+        stats.transfers = self.take_traffic();
         Ok((image, stats))
     }
 }

@@ -164,7 +164,7 @@ impl Gpu {
         let mut pass = ctx.timer.pass(&mut enc, "gpu_surfaces");
         self.bundle_ranges(&mut pass, &ctx, &grid)?;
         drop(pass);
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
         let bundles = (ctx.u.bundles_x, ctx.u.bundles_y);
         let flags = (&io.stopped, &io.guard);
         ctx.stats.dispatches = self.walk_bands(&mut ctx.timer, bundles, &binds, flags, su)?;
@@ -213,11 +213,11 @@ impl Gpu {
         let (rows, mut dispatches) = (su.band_rows.max(1), 0);
         for y0 in (0..bundles_y).step_by(rows as usize) {
             (su.band_y0, su.round) = (y0, 0);
-            self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&su));
+            self.write(uniform, bytemuck::bytes_of(&su));
             let groups = (bundles_x, rows.min(bundles_y - y0));
             dispatches += self.dispatch_until_done(timer, stage, binds, groups, flags, |n| {
                 su.round = n as u32;
-                self.queue.write_buffer(uniform, 0, bytemuck::bytes_of(&su));
+                self.write(uniform, bytemuck::bytes_of(&su));
             })?;
         }
         Ok(dispatches)

@@ -125,6 +125,43 @@ pub struct RenderParams {
     /// Where the ray cast reports its progress and looks for a request to stop (`None`:
     /// nobody watches). The adaptive and reference renderers on the CPU honour it.
     pub progress: Option<Arc<Progress>>,
+    /// What of the image the caller needs back: a GPU renderer copies only this from the
+    /// device. Default: depth and colour at full precision.
+    pub output: ImageOutput,
+}
+
+/// What of a rendered image the caller uses besides its colour. The CPU renderers fill in
+/// everything anyway; the GPU backend copies from the device only what is asked for, and its
+/// refinement passes (relaxed mode), which decide on full-precision colour and depth, read
+/// those back whatever is asked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageOutput {
+    /// The view depth per pixel ([`fluidcast_image::Image::depth`]). Off: the GPU leaves it
+    /// at +∞ and copies 4 bytes a pixel less.
+    pub depth: bool,
+    /// Colour in half precision (IEEE binary16, rounded to one of the two nearest values as
+    /// WGSL allows: relative error below 2⁻¹⁰, for display at 8 or 10 bits): the GPU copies
+    /// 8 bytes a pixel instead of 16.
+    pub half_colour: bool,
+}
+
+impl ImageOutput {
+    /// Depth and colour at full precision: what EXR files, compositing and comparisons use.
+    pub const FULL: ImageOutput = ImageOutput {
+        depth: true,
+        half_colour: false,
+    };
+    /// Colour at half precision and no depth: what a window shows.
+    pub const DISPLAY: ImageOutput = ImageOutput {
+        depth: false,
+        half_colour: true,
+    };
+}
+
+impl Default for ImageOutput {
+    fn default() -> Self {
+        ImageOutput::FULL
+    }
 }
 
 impl RenderParams {
@@ -184,6 +221,7 @@ impl Default for RenderParams {
             volume_lighting: None,
             occlusion_culling: true,
             progress: None,
+            output: ImageOutput::FULL,
         }
     }
 }
@@ -341,6 +379,32 @@ pub struct RenderStats {
     /// GPU backend: dispatches of the ray casting stage, one per pass on hardware; more where
     /// a software driver's loop limit made bundles stop and resume (see docs/gpu.md).
     pub dispatches: u64,
+    /// GPU backend: what crossed between host and device, and how often the host waited.
+    pub transfers: Transfers,
+}
+
+/// GPU backend: the traffic between host and device of one frame. On a hardware GPU each
+/// wait is a round trip (submit, run, map) and the bytes cross the PCIe bus, so these counts
+/// predict what a frame costs beyond its kernels.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Transfers {
+    /// Bytes written into device buffers (particles, sample depths, uniforms, tables).
+    pub uploaded_bytes: u64,
+    /// Bytes copied back to the host (counts, summaries, the image).
+    pub readback_bytes: u64,
+    /// Command buffers submitted.
+    pub submits: u64,
+    /// Times the host waited for the device.
+    pub waits: u64,
+}
+
+impl std::ops::AddAssign for Transfers {
+    fn add_assign(&mut self, o: Transfers) {
+        self.uploaded_bytes += o.uploaded_bytes;
+        self.readback_bytes += o.readback_bytes;
+        self.submits += o.submits;
+        self.waits += o.waits;
+    }
 }
 
 impl RenderStats {

@@ -68,6 +68,7 @@ pub fn render_over_surfaces<E: From<RenderError>>(
         stats.stages.insert(1, *g);
     }
     stats.dispatches += surface_stats.dispatches;
+    stats.transfers += surface_stats.transfers;
     if let Some(t) = stats.stages.iter_mut().find(|s| s.0 == "total") {
         t.1 = ms(t0);
     }
