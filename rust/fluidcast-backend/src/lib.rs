@@ -43,7 +43,7 @@ pub use fluidcast_rbf::{
 pub use fluidcast_render::{
     crop_to_box, support_depth_extent, GridParams, ImageOutput, IsoField, Noise, PlanParams,
     Progress, RbfRenderParams, RbfShadows, RenderError, RenderParams, RenderStats, Surfaces,
-    MAX_CELL, MAX_SIDE, MIN_TILE_BYTES,
+    Transfers, MAX_CELL, MAX_SIDE, MIN_TILE_BYTES,
 };
 
 /// Where the adaptive renderer runs.

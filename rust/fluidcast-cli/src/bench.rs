@@ -152,12 +152,22 @@ struct Runs {
     frac_above: Vec<f64>,
     views_above: usize,
     samples: u64,
+    /// GPU backend: the traffic between host and device, summed over the views.
+    transfers: fluidcast_backend::Transfers,
 }
 
 impl Runs {
     fn add(&mut self, s: &RenderStats) {
         self.stages.push(s.stages.clone());
         self.samples += s.samples;
+        self.transfers += s.transfers;
+    }
+
+    /// The traffic per view (mean): bytes uploaded and read back, submits, waits.
+    fn transfers_per_view(&self) -> [f64; 4] {
+        let t = &self.transfers;
+        let n = self.stages.len().max(1) as f64;
+        [t.uploaded_bytes, t.readback_bytes, t.submits, t.waits].map(|v| v as f64 / n)
     }
     fn median(&self, stage: &str) -> f64 {
         let mut v: Vec<f64> = self
@@ -524,6 +534,12 @@ fn adaptive_row(
     )
 }
 
+/// The traffic of `r` per view, as JSON.
+fn transfers_json(r: &Runs) -> serde_json::Value {
+    let [up, back, submits, waits] = r.transfers_per_view();
+    json!({"uploaded_bytes": up, "readback_bytes": back, "submits": submits, "waits": waits})
+}
+
 /// Prints the GPU table (adapter `adapter`) and returns its JSON rows.
 fn report_gpu(adapter: &str, m: &Measured) -> Result<Vec<serde_json::Value>> {
     let (runs, gpu_runs, tols, gpu_memory) = (&m.runs, &m.gpu_runs, &m.tols, m.gpu_memory);
@@ -584,7 +600,17 @@ fn report_gpu(adapter: &str, m: &Measured) -> Result<Vec<serde_json::Value>> {
                                  "upload_ms": opt(r.median("upload")), "total_ms": r.median("total"),
                                  "gpu_grid_ms": opt(k[0]), "gpu_sort_ms": opt(k[1]), "gpu_adapt_ms": opt(k[2]),
                                  "gpu_raycast_ms": opt(k[3]), "speedup_total_vs_cpu": speedup,
-                                 "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share}));
+                                 "max_abs_vs_cpu": r.max_err, "percent_pixels_above_1e-3": share,
+                                 "per_view": transfers_json(r)}));
+        }
+        for (t, tol) in tols.iter().enumerate() {
+            let [up, back, submits, waits] = gpu_runs[t].transfers_per_view();
+            out!(
+                "{:<10} per view: {:.2} MiB uploaded, {:.2} MiB read back, {submits:.1} submits, {waits:.1} waits for the GPU",
+                tol.map_or("off".to_string(), |e| e.to_string()),
+                up / (1024.0 * 1024.0),
+                back / (1024.0 * 1024.0)
+            );
         }
     }
     Ok(gpu_rows)
