@@ -45,11 +45,8 @@ var<workgroup> cache_m: array<vec2<u32>, 64>;
 var<workgroup> span_z: array<f32, 65>;
 // Samples composited by the workgroup's rays.
 var<workgroup> wg_samples: atomic<u32>;
-// Rays of the bundle done, counted at the start of each span into slot (span mod 3) while the
-// next slot is cleared for the next span: one barrier a span. The slot cleared was read two
-// spans ago, before the last span's barrier, whether or not the driver puts a barrier after
-// workgroupUniformLoad's load.
-var<workgroup> all_done: array<atomic<u32>, 3>;
+var<workgroup> all_done: atomic<u32>;
+var<workgroup> done_flag: u32;
 var<workgroup> wg_resume: u32;
 var<workgroup> wg_resume_chunk: u32;
 
@@ -218,23 +215,22 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         done = c.z != 0.0;
     }
     tick(1u);
-    if (li < 3u) {
-        atomicStore(&all_done[li], 0u);
-    }
-    workgroupBarrier();
     var budget = 1u; // the ticks of the spans begun, bounded alike in every invocation
     for (var s = s0; s < s1; s = s + 1u) {
         tick(1u);
         budget = budget + 1u;
-        let slot = (s - s0) % 3u;
         if (li == 0u) {
-            atomicStore(&all_done[(slot + 1u) % 3u], 0u);
+            atomicStore(&all_done, 0u);
         }
+        workgroupBarrier();
         if (done) {
-            atomicAdd(&all_done[slot], 1u);
+            atomicAdd(&all_done, 1u);
         }
-        // Also the barrier after which the previous span's span_z is read no more.
-        let n_done = workgroupUniformLoad(&all_done[slot]);
+        workgroupBarrier();
+        if (li == 0u) {
+            done_flag = atomicLoad(&all_done);
+        }
+        let n_done = workgroupUniformLoad(&done_flag);
         if (n_done == 64u) {
             break;
         }
@@ -287,6 +283,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
             continue;
         }
         let n = span.n;
+        workgroupBarrier(); // the previous span's span_z is read no more
         if (li <= n) {
             span_z[li] = depths[span.k0 + li * span.step];
         }
