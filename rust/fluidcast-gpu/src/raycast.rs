@@ -96,9 +96,18 @@ const RESUME_FRESH: u32 = u32::MAX;
 const MAXS: u64 = 64;
 
 /// The most bytes of span sums kept so that bundles can stop between chunks of a span
-/// (raycast.wgsl's `chunk_sums`: 2 MAXS floats per ray): 8192 bundles, about 512 × 512 pixels,
-/// where cells hold the most particles. Larger images stop only before spans.
+/// (raycast.wgsl's `chunk_sums`: 2 MAXS floats per ray, for one band of rows of bundles):
+/// 8192 bundles, about 512 × 512 pixels. Larger images are cast in bands that fit.
 const MAX_CHUNK_SUMS_BYTES: u64 = 256 << 20;
+
+/// On a software driver, the stride by which consecutive workgroups take bundles of a band
+/// (raycast.wgsl's `band.z`): Mesa's llvmpipe hands each of its threads one contiguous range
+/// of a dispatch's workgroups, so bundles taken in image order leave a thread with a dense
+/// region alone while the others idle.
+const SCATTER: u32 = 64;
+
+/// Bytes of `chunk_sums` per bundle.
+const CHUNK_SUMS_PER_BUNDLE: u64 = 4 * 128 * MAXS;
 
 impl Gpu {
     /// Casts the rays of a grid and plan built on the CPU ([`fluidcast_render::plan_adaptive`]):
@@ -167,13 +176,78 @@ impl Gpu {
     /// limit can stop them and the state fits one binding (else the shader stops nothing, and
     /// the loop guard refuses what passes the limit); the span's sums too, to stop between
     /// chunks of a span, where they are small enough.
-    fn bundle_resume_buffers(&self, bundles: u64) -> [wgpu::Buffer; 3] {
-        let sums = 4 * 128 * MAXS * bundles;
+    fn bundle_resume_buffers(&self, bundles: u64, band_bundles: u64) -> [wgpu::Buffer; 3] {
+        let sums = CHUNK_SUMS_PER_BUNDLE * band_bundles;
         [
             self.resume_buffer("ray state", 2 * 16 * 64 * bundles, u64::MAX),
             self.resume_buffer("chunk sums", sums, MAX_CHUNK_SUMS_BYTES),
             self.upload("resume", &fresh_resume(bundles as usize)),
         ]
+    }
+
+    /// Rows of bundles a band of the ray caster covers: where a loop limit can stop bundles,
+    /// as many as keep their span sums within one binding (at least one); else all.
+    fn cast_band_rows(&self, (bundles_x, bundles_y): (u32, u32)) -> u32 {
+        if !self.bounded() {
+            return bundles_y;
+        }
+        let per_row = CHUNK_SUMS_PER_BUNDLE * u64::from(bundles_x);
+        let fit = (self.max_binding.min(MAX_CHUNK_SUMS_BYTES) / per_row).max(1);
+        fit.min(u64::from(bundles_y)) as u32
+    }
+
+    /// Dispatches the ray caster over the whole image, each dispatch until none of its
+    /// bundles stopped; where bundles cannot stop between the chunks of a span there (their
+    /// sums do not fit one binding), a bundle whose next span is too long for one invocation
+    /// defers it, and the deferred bundles are then cast band by band of `rows` rows of
+    /// bundles, whose sums fit. Returns the dispatches.
+    fn cast_bands(
+        &self,
+        timer: &mut Timer,
+        binds: &[(&str, &wgpu::Buffer)],
+        (groups, rows): ((u32, u32), u32),
+        flags: (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> Result<u64, GpuError> {
+        let banded = rows < groups.1;
+        let mut dispatches = self.cast_band(timer, binds, groups, (0, groups.1, banded), flags)?;
+        if !banded {
+            return Ok(dispatches);
+        }
+        // guard[0]: refused (the caller reports it); guard[1]: bundles deferred.
+        let guard = self.fetch_with(&[(flags.1, 8)], |got| cast::<u32>(got[0]))?;
+        if guard[0] != 0 || guard[1] == 0 {
+            return Ok(dispatches);
+        }
+        // Counted: the count starts again for the next pass of the frame.
+        self.write(flags.1, bytemuck::bytes_of(&[0u32; 2]));
+        for y0 in (0..groups.1).step_by(rows.max(1) as usize) {
+            let band = (y0, rows.min(groups.1 - y0), false);
+            dispatches += self.cast_band(timer, binds, groups, band, flags)?;
+        }
+        Ok(dispatches)
+    }
+
+    /// Dispatches the ray caster over `rows` rows of bundles from `y0` (raycast.wgsl's
+    /// `band`), with `defer` set where long spans are left to banded dispatches, until none
+    /// of its bundles stopped.
+    fn cast_band(
+        &self,
+        timer: &mut Timer,
+        binds: &[(&str, &wgpu::Buffer)],
+        groups: (u32, u32),
+        (y0, rows, defer): (u32, u32, bool),
+        flags: (&wgpu::Buffer, &wgpu::Buffer),
+    ) -> Result<u64, GpuError> {
+        let pipe = (&self.pipes.raycast, "the ray casting", "gpu_raycast");
+        let n = rows * groups.0;
+        let s = if self.software { SCATTER.min(n) } else { 1 };
+        let total = s * n.div_ceil(s);
+        let band = self.small_uniform([y0, rows, s, u32::from(defer)]);
+        let mut banded = binds.to_vec();
+        banded.push(("band", &band));
+        let x = total.min(32768);
+        let g = (x, total.div_ceil(x));
+        self.dispatch_until_done(timer, pipe, &banded, g, flags, |_| {})
     }
 
     /// Stage 5: casts the rays of `b`; the image and the sample count are read back into `image`
@@ -194,7 +268,9 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
-        let [state, sums, resume] = self.bundle_resume_buffers(bundles);
+        let rows = self.cast_band_rows(groups);
+        let band_bundles = u64::from(rows) * u64::from(groups.0);
+        let [state, sums, resume] = self.bundle_resume_buffers(bundles, band_bundles);
         let binds = [
             ("P", b.frame),
             ("tf", b.tf),
@@ -214,16 +290,8 @@ impl Gpu {
             ("resume", &resume),
             ("chunk_sums", &sums),
         ];
-        let pipe = &self.pipes.raycast;
         let flags = (&resume, b.guard);
-        stats.dispatches += self.dispatch_until_done(
-            timer,
-            (pipe, "the ray casting", "gpu_raycast"),
-            &binds,
-            groups,
-            flags,
-            |_| {},
-        )?;
+        stats.dispatches += self.cast_bands(timer, &binds, (groups, rows), flags)?;
         let t = Instant::now();
         let out = params.output;
         let colour = match out.half_colour {

@@ -249,6 +249,32 @@ fn dense_cells_match_the_cpu_in_as_many_dispatches_as_they_need() {
     }
 }
 
+/// The 12,000-particle clump again, seen from 30 times as far in a 1024 × 768 image (about
+/// 16 pixels across, a few bundles): its spans are still too long for one invocation, and the
+/// span sums of every bundle of the image do not fit one binding on lavapipe (768 MiB against
+/// 128), so the ray caster runs in bands of rows of bundles whose sums fit, each band's bundles
+/// stopping between chunks and resuming (it was refused at any size above about 512 × 512).
+#[test]
+fn a_span_past_the_loop_limit_renders_in_a_large_image() {
+    let Some(g) = gpu() else { return };
+    let (tf, mut cam, mut prm) = clump_view();
+    cam.position = [0.0, 0.0, 18.0];
+    (prm.width, prm.height) = (1024, 768);
+    let p = clump(12000);
+    let cpu = render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let r = g.render_adaptive(&p, None, &cam, &tf, &prm).unwrap();
+    let covered = cpu.image.rgba.iter().filter(|c| c[3] > 0.0).count();
+    assert!((100..2000).contains(&covered), "{covered} pixels covered");
+    let (c, _) = fluidcast_image::compare(&cpu.image, &r.image, 1e-3).unwrap();
+    assert!(c.max_abs <= 1e-3, "max abs {}", c.max_abs);
+    assert_eq!(cpu.stats.samples, r.stats.samples);
+    let n = r.stats.dispatches;
+    assert!(
+        if g.is_software() { n > 6 } else { n == 1 },
+        "{n} ray casting dispatches"
+    );
+}
+
 /// `clumps` balls of `n` particles each (as [`clump`]'s), one behind the other along the view
 /// axis 0.3 world units apart.
 fn column_of_clumps(clumps: usize, n: usize) -> Particles {

@@ -23,13 +23,21 @@
 // (depth at half opacity, samples as bits, done, 0); resume[1 + b] the span to resume at
 // (RESUME_FRESH before the first dispatch, RESUME_DONE once the bundle's pixels are written)
 // and resume[1 + B + b] the chunk of its particles (B bundles; 0: the span's start);
-// resume[0] the bundles that stopped in this dispatch. Where chunk_sums holds every ray's
-// span sums (2 MAXS floats at (64 b + li) 2 MAXS: small images, whose cells hold the most
-// particles), a bundle may stop between two chunks of a span too, so that no span is too
-// long for one invocation; elsewhere only before a span.
+// resume[0] the bundles that stopped in this dispatch. A dispatch covers a band of rows of
+// bundles (from band.x, the rows the host fits chunk_sums with); where chunk_sums holds the
+// band's rays' span sums (2 MAXS floats at (64 b' + li) 2 MAXS, b' the bundle within the
+// band), a bundle may stop between two chunks of a span too, so that no span is too long for
+// one invocation; elsewhere only before a span.
 @group(0) @binding(15) var<storage, read_write> ray_state: array<vec4<f32>>;
 @group(0) @binding(16) var<storage, read_write> resume: array<atomic<u32>>;
 @group(0) @binding(17) var<storage, read_write> chunk_sums: array<f32>;
+// The band: x its first row of bundles, y its rows, z the scatter s, w: 1 where a bundle whose
+// first span is too long for one invocation leaves it to the host's banded dispatches (see
+// defer_span). With m = ceil(bundles / s), workgroup k of the dispatch casts the band's bundle
+// (k mod s) m + k / s (row by row): on a software driver, which hands each thread one
+// contiguous range of workgroups, every thread gets bundles from all over the band, not one
+// region's (s = 1 on hardware: bundle k).
+@group(0) @binding(18) var<uniform> band: vec4<u32>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
@@ -128,9 +136,7 @@ fn below_probe(n: u32, z: f32, or_at: bool, lo: u32, by: u32) -> u32 {
 /// saved, the place noted once for the workgroup, and counted.
 fn suspend(st: u32, color: vec3<f32>, trans: f32, depth_half: f32, samples: u32, done: bool,
            guarded: bool, li: u32, b: u32, nb: u32, s: u32, c0: u32) {
-    ray_state[st] = vec4<f32>(color, trans);
-    ray_state[st + 1u] = vec4<f32>(depth_half, bitcast<f32>(samples), select(0.0, 1.0, done),
-                                   0.0);
+    save_ray(st, color, trans, depth_half, samples, done);
     if (li == 0u) {
         atomicStore(&resume[1u + b], s);
         atomicStore(&resume[1u + nb + b], c0);
@@ -141,12 +147,40 @@ fn suspend(st: u32, color: vec3<f32>, trans: f32, depth_half: f32, samples: u32,
     }
 }
 
+/// Leaves span `s`, too long for one invocation where bundles cannot stop between its chunks,
+/// to the host's banded dispatches that follow (band.w): the ray's state saved, the place
+/// noted, and counted in guard[1], not among the bundles to resume in this band.
+fn defer_span(st: u32, color: vec3<f32>, trans: f32, depth_half: f32, samples: u32, done: bool,
+              li: u32, b: u32, nb: u32, s: u32) {
+    save_ray(st, color, trans, depth_half, samples, done);
+    if (li == 0u) {
+        atomicStore(&resume[1u + b], s);
+        atomicStore(&resume[1u + nb + b], 0u);
+        atomicAdd(&guard[1], 1u);
+    }
+}
+
+fn save_ray(st: u32, color: vec3<f32>, trans: f32, depth_half: f32, samples: u32, done: bool) {
+    ray_state[st] = vec4<f32>(color, trans);
+    ray_state[st + 1u] = vec4<f32>(depth_half, bitcast<f32>(samples), select(0.0, 1.0, done),
+                                   0.0);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
-        @builtin(local_invocation_index) li: u32) {
-    let b = wg.y * P.bundles_x + wg.x;
-    let i = wg.x * P.bundle + lid.x;
-    let j = wg.y * P.bundle + lid.y;
+        @builtin(local_invocation_index) li: u32, @builtin(num_workgroups) nw: vec3<u32>) {
+    let k = wg.y * nw.x + wg.x;
+    let band_bundles = band.y * P.bundles_x;
+    let m = (band_bundles + band.z - 1u) / band.z;
+    let q = (k % band.z) * m + k / band.z; // the bundle within the band
+    if (k >= band.z * m || q >= band_bundles) {
+        return;
+    }
+    let bx = q % P.bundles_x;
+    let by = band.x + q / P.bundles_x;
+    let b = by * P.bundles_x + bx;
+    let i = bx * P.bundle + lid.x;
+    let j = by * P.bundle + lid.y;
     let in_image = lid.x < P.bundle && lid.y < P.bundle && i < P.width && j < P.height;
 
     // The ray through pixel (i, j), as Ray::through_pixel.
@@ -197,8 +231,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
     // the span sums (else bundles stop only before spans).
     // (Divided, not multiplied: nb 128 MAXS passes 32 bits from about 8K x 8K on.)
     let resumable = arrayLength(&ray_state) / 128u >= nb;
-    let chunked = resumable && arrayLength(&chunk_sums) / (128u * MAXS) >= nb;
-    let sums_at = (b * 64u + li) * 2u * MAXS;
+    let chunked = resumable && arrayLength(&chunk_sums) / (128u * MAXS) >= band_bundles;
+    let sums_at = (q * 64u + li) * 2u * MAXS;
     if (resume_at == RESUME_DONE) {
         return;
     }
@@ -244,10 +278,17 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         if (span.superpixel == 0u) {
             ref_count = span_refs(span.first, span.count);
             let whole = span_head(span) + chunks_cost(span, ref_count) + span_tail(span);
-            if (resumable && !chunked && s > s0 && budget + whole > P.loop_limit) {
-                // Stop before this span; the next dispatch resumes here.
-                suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s, 0u);
-                return;
+            if (resumable && !chunked && budget + whole > P.loop_limit) {
+                if (s > s0) {
+                    // Stop before this span; the next dispatch resumes here.
+                    suspend(st, color, trans, depth_half, samples, done, guarded, li, b, nb, s,
+                            0u);
+                    return;
+                }
+                if (band.w != 0u) {
+                    defer_span(st, color, trans, depth_half, samples, done, li, b, nb, s);
+                    return;
+                }
             }
             budget = budget + span_head(span);
         }
