@@ -227,7 +227,10 @@ pub(crate) struct RbfUniform {
     pub(crate) shadow_samples: u32,
     pub(crate) light: [f32; 4],
     pub(crate) ambient: f32,
-    pub(crate) pad: [u32; 3],
+    /// Consecutive workgroups take 8 x 8 tiles this far apart (common.wgsl's
+    /// `scattered_bundle`).
+    pub(crate) scatter: u32,
+    pub(crate) pad: [u32; 2],
 }
 
 const _: () = assert!(std::mem::size_of::<RbfUniform>() == 112);
@@ -258,7 +261,8 @@ pub(crate) struct SurfaceUniform {
     /// so that the walks in progress fit one binding).
     pub(crate) band_y0: u32,
     pub(crate) band_rows: u32,
-    pub(crate) pad: u32,
+    /// Consecutive workgroups take bundles this far apart (common.wgsl's `scattered_bundle`).
+    pub(crate) scatter: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<SurfaceUniform>() == 96);
@@ -535,7 +539,8 @@ mod tests {
                 shadows,
                 shadow_samples,
                 light,
-                ambient
+                ambient,
+                scatter
             ]
         );
         same_layout!(
@@ -555,7 +560,8 @@ mod tests {
                 opacity,
                 round,
                 band_y0,
-                band_rows
+                band_rows,
+                scatter
             ]
         );
         same_layout!(

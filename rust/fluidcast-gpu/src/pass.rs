@@ -10,6 +10,12 @@ use wgpu::util::DeviceExt;
 
 use crate::{cast, push_stage, Gpu, GpuError, QUERIES};
 
+/// On a software driver, the stride by which consecutive workgroups take bundles
+/// (common.wgsl's `scattered_bundle`): Mesa's llvmpipe hands each of its threads one contiguous
+/// range of a dispatch's workgroups (lp_cs_tpool.c), so bundles taken in image order leave a
+/// thread alone with a dense region while the others idle.
+const SCATTER: u32 = 64;
+
 /// Most dispatches of one stage (see [`Gpu::dispatch_until_done`]).
 const MAX_DISPATCHES: u32 = 1 << 20;
 
@@ -207,6 +213,20 @@ impl Gpu {
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(groups.0, groups.1, 1);
         Ok(())
+    }
+
+    /// For a dispatch over `n` bundles, one workgroup each: the scatter (common.wgsl's
+    /// `scattered_bundle`: [`SCATTER`] on a software driver, 1 on hardware) and the workgroups
+    /// (folded into two dimensions past 32768).
+    pub(crate) fn scattered_groups(&self, n: u32) -> (u32, (u32, u32)) {
+        let s = if self.software {
+            SCATTER.min(n).max(1)
+        } else {
+            1
+        };
+        let total = s * n.div_ceil(s);
+        let x = total.clamp(1, 32768);
+        (s, (x, total.div_ceil(x)))
     }
 
     /// A small uniform buffer made for one dispatch (each dispatch of a pass sees its own).

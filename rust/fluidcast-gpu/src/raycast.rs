@@ -100,12 +100,6 @@ const MAXS: u64 = 64;
 /// 8192 bundles, about 512 × 512 pixels. Larger images are cast in bands that fit.
 const MAX_CHUNK_SUMS_BYTES: u64 = 256 << 20;
 
-/// On a software driver, the stride by which consecutive workgroups take bundles of a band
-/// (raycast.wgsl's `band.z`): Mesa's llvmpipe hands each of its threads one contiguous range
-/// of a dispatch's workgroups, so bundles taken in image order leave a thread with a dense
-/// region alone while the others idle.
-const SCATTER: u32 = 64;
-
 /// Bytes of `chunk_sums` per bundle.
 const CHUNK_SUMS_PER_BUNDLE: u64 = 4 * 128 * MAXS;
 
@@ -239,14 +233,10 @@ impl Gpu {
         flags: (&wgpu::Buffer, &wgpu::Buffer),
     ) -> Result<u64, GpuError> {
         let pipe = (&self.pipes.raycast, "the ray casting", "gpu_raycast");
-        let n = rows * groups.0;
-        let s = if self.software { SCATTER.min(n) } else { 1 };
-        let total = s * n.div_ceil(s);
+        let (s, g) = self.scattered_groups(rows * groups.0);
         let band = self.small_uniform([y0, rows, s, u32::from(defer)]);
         let mut banded = binds.to_vec();
         banded.push(("band", &band));
-        let x = total.min(32768);
-        let g = (x, total.div_ceil(x));
         self.dispatch_until_done(timer, pipe, &banded, g, flags, |_| {})
     }
 

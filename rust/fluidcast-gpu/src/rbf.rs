@@ -80,7 +80,8 @@ fn rbf_uniform(field: &RbfField, rbf: &RbfRenderParams, step: f64) -> RbfUniform
             [s.light[0] as f32, s.light[1] as f32, s.light[2] as f32, 0.0]
         }),
         ambient: rbf.shadows.as_ref().map_or(1.0, |s| s.ambient as f32),
-        pad: [0; 3],
+        scatter: 1,
+        pad: [0; 2],
     }
 }
 
@@ -214,7 +215,9 @@ impl Gpu {
         ];
         let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
         let t = Instant::now();
-        let groups = (w.div_ceil(8), h.div_ceil(8));
+        let (scatter, groups) = self.scattered_groups(w.div_ceil(8) * h.div_ceil(8));
+        u.scatter = scatter;
+        self.write(&rbf_buf, bytemuck::bytes_of(&u));
         let pipe = (&self.pipes.rbf, "the RBF march", "gpu_raycast");
         let flags = (&stopped, &guard);
         stats.dispatches =

@@ -87,7 +87,7 @@ fn surface_uniform(s: &Surfaces) -> SurfaceUniform {
         round: 0,
         band_y0: 0,
         band_rows: 0,
-        pad: 0,
+        scatter: 1,
     }
 }
 
@@ -213,8 +213,10 @@ impl Gpu {
         let (rows, mut dispatches) = (su.band_rows.max(1), 0);
         for y0 in (0..bundles_y).step_by(rows as usize) {
             (su.band_y0, su.round) = (y0, 0);
+            // Every band takes `rows` rows: the last one's rows past the image return at once.
+            let (scatter, groups) = self.scattered_groups(rows * bundles_x);
+            su.scatter = scatter;
             self.write(uniform, bytemuck::bytes_of(&su));
-            let groups = (bundles_x, rows.min(bundles_y - y0));
             dispatches += self.dispatch_until_done(timer, stage, binds, groups, flags, |n| {
                 su.round = n as u32;
                 self.write(uniform, bytemuck::bytes_of(&su));

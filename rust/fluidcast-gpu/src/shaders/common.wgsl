@@ -102,6 +102,21 @@ fn over_budget(next: u32) -> bool {
 // Set when `take_iteration` found the budget spent: the work under way stops unfinished.
 var<private> out_of_budget: bool = false;
 
+/// The bundle (row by row) that workgroup `k` of a dispatch over `n` bundles casts, consecutive
+/// workgroups `scatter` apart: with m = ceil(n / scatter), (k mod scatter) m + k / scatter, a
+/// bijection of [0, scatter m); 0xffffffff for the dispatch's padding. llvmpipe hands each of
+/// its threads one contiguous range of a dispatch's workgroups, so on a software driver this
+/// gives every thread bundles from all over the image, not one region's (scatter = 1 on
+/// hardware, whose scheduler balances: bundle k).
+fn scattered_bundle(k: u32, n: u32, scatter: u32) -> u32 {
+    let m = (n + scatter - 1u) / scatter;
+    let q = (k % scatter) * m + k / scatter;
+    if (k >= scatter * m || q >= n) {
+        return 0xffffffffu;
+    }
+    return q;
+}
+
 /// One more loop iteration, or false (and out_of_budget) when the invocation has none left:
 /// for loops whose trip count is only known as they run (the RBF march's queries, the
 /// surface walk's sums).

@@ -31,12 +31,9 @@
 @group(0) @binding(15) var<storage, read_write> ray_state: array<vec4<f32>>;
 @group(0) @binding(16) var<storage, read_write> resume: array<atomic<u32>>;
 @group(0) @binding(17) var<storage, read_write> chunk_sums: array<f32>;
-// The band: x its first row of bundles, y its rows, z the scatter s, w: 1 where a bundle whose
-// first span is too long for one invocation leaves it to the host's banded dispatches (see
-// defer_span). With m = ceil(bundles / s), workgroup k of the dispatch casts the band's bundle
-// (k mod s) m + k / s (row by row): on a software driver, which hands each thread one
-// contiguous range of workgroups, every thread gets bundles from all over the band, not one
-// region's (s = 1 on hardware: bundle k).
+// The band: x its first row of bundles, y its rows, z the scatter (common.wgsl's
+// scattered_bundle), w: 1 where a bundle whose first span is too long for one invocation
+// leaves it to the host's banded dispatches (see defer_span).
 @group(0) @binding(18) var<uniform> band: vec4<u32>;
 
 const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
@@ -171,9 +168,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid:
         @builtin(local_invocation_index) li: u32, @builtin(num_workgroups) nw: vec3<u32>) {
     let k = wg.y * nw.x + wg.x;
     let band_bundles = band.y * P.bundles_x;
-    let m = (band_bundles + band.z - 1u) / band.z;
-    let q = (k % band.z) * m + k / band.z; // the bundle within the band
-    if (k >= band.z * m || q >= band_bundles) {
+    let q = scattered_bundle(k, band_bundles, band.z); // the bundle within the band
+    if (q == 0xffffffffu) {
         return;
     }
     let bx = q % P.bundles_x;

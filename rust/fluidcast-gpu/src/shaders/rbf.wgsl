@@ -22,7 +22,7 @@ struct Rbf {
     shadow_samples: u32,
     light: vec4<f32>,     // toward the light (unit, world)
     ambient: f32,
-    pad0: u32,
+    scatter: u32,         // common.wgsl's scattered_bundle, over the 8 x 8 tiles
     pad1: u32,
     pad2: u32,
 };
@@ -369,10 +369,14 @@ fn run(w: ptr<function, Work>, o: vec3<f32>, d: vec3<f32>, span: vec2<f32>, i: u
 }
 
 @compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    let j = gid.y;
-    if (i >= P.width || j >= P.height) {
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+        @builtin(num_workgroups) nw: vec3<u32>) {
+    let tiles_x = (P.width + 7u) / 8u;
+    let tiles = tiles_x * ((P.height + 7u) / 8u);
+    let q = scattered_bundle(wg.y * nw.x + wg.x, tiles, R.scatter);
+    let i = (q % tiles_x) * 8u + lid.x;
+    let j = (q / tiles_x) * 8u + lid.y;
+    if (q == 0xffffffffu || i >= P.width || j >= P.height) {
         return;
     }
     // ViewFrame::ray: the ray through the pixel centre, with d . forward = 1.

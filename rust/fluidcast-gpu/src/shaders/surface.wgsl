@@ -24,7 +24,7 @@ struct Surf {
     round: u32,           // dispatches of this band before this one (see `resume`)
     band_y0: u32,         // the band's first row of bundles (dispatches cover bands of rows)
     band_rows: u32,       // its rows of bundles
-    pad0: u32,
+    scatter: u32,         // common.wgsl's scattered_bundle
 };
 
 @group(0) @binding(2) var<uniform> S: Surf;
@@ -739,12 +739,15 @@ fn fresh_walk(b: u32) -> Walk {
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
-    let by = wg.y + S.band_y0;
-    let b = by * P.bundles_x + wg.x;
-    let i = wg.x * P.bundle + lid.x;
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>,
+        @builtin(num_workgroups) nw: vec3<u32>) {
+    let q = scattered_bundle(wg.y * nw.x + wg.x, S.band_rows * P.bundles_x, S.scatter);
+    let bx = q % P.bundles_x;
+    let by = q / P.bundles_x + S.band_y0;
+    let b = by * P.bundles_x + bx;
+    let i = bx * P.bundle + lid.x;
     let j = by * P.bundle + lid.y;
-    if (lid.x >= P.bundle || lid.y >= P.bundle || i >= P.width || j >= P.height) {
+    if (q == 0xffffffffu || lid.x >= P.bundle || lid.y >= P.bundle || i >= P.width || j >= P.height) {
         return;
     }
     // The ray through pixel (i, j), as Ray::through_pixel (view space, d.z = 1).
