@@ -151,6 +151,13 @@ impl Gpu {
         })
     }
 
+    /// rbf.wgsl's uniform `R`, holding `u`.
+    fn rbf_buffer(&self, u: &RbfUniform) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST;
+        let size = std::mem::size_of::<RbfUniform>() as u64;
+        self.buffer("rbf", size, usage, Some(bytemuck::bytes_of(u)))
+    }
+
     /// Renders `field` as [`fluidcast_render::render_rbf`] does (the same passes, offsets,
     /// shade points and shadow rays), in single precision on the GPU.
     pub fn render_rbf(
@@ -183,14 +190,11 @@ impl Gpu {
         let t0 = Instant::now();
         self.take_traffic();
         let mut u = rbf_uniform(field, rbf, step);
+        let (scatter, groups) = self.scattered_groups(w.div_ceil(8) * h.div_ceil(8));
+        u.scatter = scatter;
         let fu = frame_uniform(&frame, params, tf, bvh.len(), self.divergent_loop_limit());
         let frame_buf = self.frame_buffer(&fu);
-        let rbf_buf = self.buffer(
-            "rbf",
-            std::mem::size_of::<RbfUniform>() as u64,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            Some(bytemuck::bytes_of(&u)),
-        );
+        let rbf_buf = self.rbf_buffer(&u);
         let tf_buf = self.tf_buffer(tf);
         let [boxes, spheres, attrs, blue] = self.field_buffers(field);
         let n_px = u64::from(w) * u64::from(h);
@@ -215,9 +219,6 @@ impl Gpu {
         ];
         let mut timer = crate::pass::Timer::new(self.timestamps.as_ref());
         let t = Instant::now();
-        let (scatter, groups) = self.scattered_groups(w.div_ceil(8) * h.div_ceil(8));
-        u.scatter = scatter;
-        self.write(&rbf_buf, bytemuck::bytes_of(&u));
         let pipe = (&self.pipes.rbf, "the RBF march", "gpu_raycast");
         let flags = (&stopped, &guard);
         stats.dispatches =
