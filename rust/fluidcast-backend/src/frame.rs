@@ -35,6 +35,10 @@ pub struct Rendered {
     pub march_bvh_bytes: Option<usize>,
 }
 
+/// Times [`Renderer::render`] halves the particles of its screen tiles for a view that does
+/// not fit the GPU's buffers before it gives up.
+const GPU_TILE_TRIES: usize = 6;
+
 /// The most particles a screen tile of `n` particles at `width × height` may hold under
 /// `tiles`; `None`: one render. With a budget only, `None` also when one render fits it.
 pub fn tile_particles(
@@ -157,7 +161,44 @@ impl Renderer {
                 let (camera, params) = (&scene.camera, &plan.params);
                 render_in_tiles(particles, surface, camera, params, (max, margin), draw)
             }
-            None => draw(particles, surface, &plan.params),
+            None => match draw(particles, surface, &plan.params) {
+                Err(BackendError::Gpu(e)) if plan.params.surfaces.is_none() => {
+                    let Some(over) = e.buffer_overflow() else {
+                        return Err(e.into());
+                    };
+                    self.gpu_tiles(scene, particles, surface, &plan.params, over)
+                }
+                r => r,
+            },
+        }
+    }
+
+    /// A view whose pairs or cells (`over`: needed, limit) do not fit the GPU's buffers,
+    /// rendered in screen tiles with proportionally fewer particles each (half as many
+    /// again while a tile still does not fit, at most [`GPU_TILE_TRIES`] times).
+    fn gpu_tiles(
+        &self,
+        scene: &Scene,
+        particles: &Particles,
+        surface: Option<&[bool]>,
+        params: &RenderParams,
+        (needed, limit): (u64, u64),
+    ) -> Result<(Image, RenderStats), BackendError> {
+        let draw = |p: &Particles, s: Option<&[bool]>, prm: &RenderParams| {
+            self.render_untiled(scene, p, s, prm, Mode::Adaptive)
+        };
+        let n = particles.len() as u64;
+        let mut max = (n * limit / needed.max(1) / 2).max(1) as usize;
+        let mut tries = 1;
+        loop {
+            match render_in_tiles(particles, surface, &scene.camera, params, (max, 0), draw) {
+                Err(BackendError::Gpu(e))
+                    if e.buffer_overflow().is_some() && max > 1 && tries < GPU_TILE_TRIES =>
+                {
+                    (max, tries) = (max.div_ceil(2), tries + 1);
+                }
+                r => return r,
+            }
         }
     }
 

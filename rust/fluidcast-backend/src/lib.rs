@@ -205,6 +205,16 @@ impl Renderer {
         }
     }
 
+    /// Frames on `gpu`, opened (and limited: [`Gpu::with_loop_limit`],
+    /// [`Gpu::with_binding_limit`]) by the caller.
+    pub fn with_gpu(gpu: Gpu) -> Renderer {
+        Renderer {
+            requested: Backend::Gpu,
+            gpu: Some(gpu),
+            note: None,
+        }
+    }
+
     /// The GPU, when frames render on one.
     pub fn gpu(&self) -> Option<&Gpu> {
         self.gpu.as_ref()

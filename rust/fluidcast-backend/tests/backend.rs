@@ -306,3 +306,32 @@ fn progressive_passes_do_not_cross_devices() {
     );
     assert_eq!(g1_again, g1);
 }
+
+/// A view whose particle–cell pairs do not fit one of the GPU's buffer bindings (here a
+/// binding of three quarters of what they need) renders in screen tiles of fewer particles, to
+/// the CPU's image at full rate; it was refused (TooManyPairs).
+#[test]
+fn views_past_the_gpu_buffers_render_in_tiles() {
+    let gpu = match fluidcast_gpu::Gpu::new() {
+        Ok(g) => g,
+        Err(e) if !require_gpu() => return eprintln!("SKIPPED: {e}"),
+        Err(e) => panic!("FLUIDCAST_REQUIRE_GPU=1 but: {e}"),
+    };
+    let (p, tf, cam, mut prm) = scene();
+    (prm.width, prm.height) = (200, 150);
+    // At full rate, where the plan (made per tile) cannot change the image.
+    prm.adaptive.tolerance = None;
+    let whole = draw(&Renderer::with_gpu(gpu), &p, &cam, &tf, &prm).unwrap();
+    assert_eq!(whole.stats.tiles, 0);
+    let (pairs, cells) = (whole.stats.pairs, whole.stats.cells);
+    // Three quarters of the pairs' 4 bytes each; the cells' error bounds (224 bytes each)
+    // fit, so the pairs are what does not.
+    let limit = 3 * pairs;
+    assert!(224 * cells < limit, "{cells} cells, {pairs} pairs");
+    let small = fluidcast_gpu::Gpu::new().unwrap().with_binding_limit(limit);
+    let tiled = draw(&Renderer::with_gpu(small), &p, &cam, &tf, &prm).unwrap();
+    assert!(tiled.stats.tiles > 1, "{} tiles", tiled.stats.tiles);
+    let cpu = draw(&Renderer::cpu(), &p, &cam, &tf, &prm).unwrap();
+    let (c, _) = fluidcast_image::compare(&cpu.image, &tiled.image, 1e-3).unwrap();
+    assert!(c.max_abs <= 1e-3, "tiled GPU vs CPU max abs {}", c.max_abs);
+}

@@ -105,6 +105,21 @@ pub enum GpuError {
     Render(#[from] RenderError),
 }
 
+impl GpuError {
+    /// For a view whose particle–cell pairs or cells do not fit one buffer binding
+    /// ([`GpuError::TooManyPairs`], [`GpuError::TooManyCells`]): what it needs and the
+    /// limit. Screen tiles with fewer particles each need less (the backend renders such a
+    /// view in tiles).
+    pub fn buffer_overflow(&self) -> Option<(u64, u64)> {
+        match self {
+            GpuError::TooManyPairs(n, limit) | GpuError::TooManyCells(n, limit) => {
+                Some((*n, *limit))
+            }
+            _ => None,
+        }
+    }
+}
+
 /// The compute pipelines, one per shader entry point, each stage's next to its shader.
 struct Pipelines {
     view: Pipe,
@@ -288,6 +303,15 @@ impl Gpu {
     /// resets a GPU whose dispatch runs for seconds). The image is the same.
     pub fn with_loop_limit(mut self, iterations: u32) -> Gpu {
         self.loop_limit = self.loop_limit.min(iterations);
+        self
+    }
+
+    /// This GPU with storage bindings of at most `bytes` (never more than the adapter's): a
+    /// view whose particle–cell pairs or cells need more is refused with
+    /// [`GpuError::buffer_overflow`], which the backend renders in screen tiles. For tests on
+    /// small scenes, and for drivers whose largest bindings are slow.
+    pub fn with_binding_limit(mut self, bytes: u64) -> Gpu {
+        self.max_binding = self.max_binding.min(bytes);
         self
     }
 
