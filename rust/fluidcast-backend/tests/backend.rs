@@ -330,7 +330,14 @@ fn views_past_the_gpu_buffers_render_in_tiles() {
     assert!(224 * cells < limit, "{cells} cells, {pairs} pairs");
     let small = fluidcast_gpu::Gpu::new().unwrap().with_binding_limit(limit);
     let tiled = draw(&Renderer::with_gpu(small), &p, &cam, &tf, &prm).unwrap();
-    assert!(tiled.stats.tiles > 1, "{} tiles", tiled.stats.tiles);
+    let (tiles, dispatches) = (tiled.stats.tiles, tiled.stats.dispatches);
+    assert!(tiles > 1, "{tiles} tiles");
+    // Each tile's ray casting dispatches, and traffic, add up.
+    assert!(
+        dispatches >= tiles as u64,
+        "{dispatches} dispatches in {tiles} tiles"
+    );
+    assert!(tiled.stats.transfers.waits > whole.stats.transfers.waits);
     let cpu = draw(&Renderer::cpu(), &p, &cam, &tf, &prm).unwrap();
     let (c, _) = fluidcast_image::compare(&cpu.image, &tiled.image, 1e-3).unwrap();
     assert!(c.max_abs <= 1e-3, "tiled GPU vs CPU max abs {}", c.max_abs);

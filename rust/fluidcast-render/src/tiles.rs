@@ -239,6 +239,8 @@ fn add_stats(total: &mut RenderStats, tile: &RenderStats) {
     total.culled += tile.culled;
     total.interpolated += tile.interpolated;
     total.cells += tile.cells;
+    total.dispatches += tile.dispatches;
+    total.transfers += tile.transfers;
     total.depth_samples = tile.depth_samples;
     total.near = tile.near;
     total.far = tile.far;
