@@ -102,8 +102,9 @@ pub struct SplitArgs {
     /// hold is an error that says how much they need.
     #[arg(long, value_parser = parse_memory_limit)]
     pub memory_limit: Option<u64>,
-    /// Render each view in at least this many screen tiles (the same image; less memory,
-    /// a little more time).
+    /// Render each view in at least this many screen tiles (the same image at full rate,
+    /// within the error tolerance with image-space interpolation; less memory, a little more
+    /// time).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
     pub tiles: Option<u32>,
 }
