@@ -445,11 +445,21 @@ pub fn cast_refined<E>(
     };
     cast(&pass_params(params, &lattice), image)?;
     lap("lattice");
-    let est = estimates(image, &lattice, params, frame, tolerance);
+    // Pixels whose rays composite nothing (outside a screen tile, behind geometry at the
+    // eye) are neither estimated nor cast again: the lattice pass left them empty.
+    let settled: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|k| {
+            let (near, far) =
+                params.depth_range_at((k % w as usize) as u32, (k / w as usize) as u32);
+            lattice[k] || far <= near.max(0.0)
+        })
+        .collect();
+    let est = estimates(image, &settled, params, frame, tolerance);
     let accepted = accepted_in_smooth_bundles(&est, params, n);
     let rest: Vec<bool> = (0..n)
         .into_par_iter()
-        .map(|k| !lattice[k] && !accepted[k])
+        .map(|k| !settled[k] && !accepted[k])
         .collect();
     lap("estimate");
     // The second and third passes fill pixels that no pass has cast yet.
