@@ -342,6 +342,18 @@ impl Gpu {
         self.buffer(role, if fits { bytes } else { 16 }, RW, None)
     }
 
+    /// Rows of bundles a band of work that stops and resumes covers: where a loop limit can
+    /// stop the work, as many of `rows` as keep what it keeps (`per_row` bytes a row) within
+    /// one binding and `most` (at least one: a row that does not fit gets no room, and what
+    /// passes the limit is refused); else all of them.
+    fn band_rows(&self, per_row: u64, most: u64, rows: u32) -> u32 {
+        if !self.bounded() {
+            return rows;
+        }
+        let fit = (self.max_binding.min(most) / per_row.max(1)).max(1);
+        fit.min(u64::from(rows)) as u32
+    }
+
     /// The loop budget of one invocation of a shader whose invocations loop independently
     /// (the RBF march: each pixel its own number of samples and queries). Mesa's gallivm runs
     /// invocations side by side in the lanes of a vector and counts a loop's iterations while

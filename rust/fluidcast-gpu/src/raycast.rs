@@ -179,17 +179,6 @@ impl Gpu {
         ]
     }
 
-    /// Rows of bundles a band of the ray caster covers: where a loop limit can stop bundles,
-    /// as many as keep their span sums within one binding (at least one); else all.
-    fn cast_band_rows(&self, (bundles_x, bundles_y): (u32, u32)) -> u32 {
-        if !self.bounded() {
-            return bundles_y;
-        }
-        let per_row = CHUNK_SUMS_PER_BUNDLE * u64::from(bundles_x);
-        let fit = (self.max_binding.min(MAX_CHUNK_SUMS_BYTES) / per_row).max(1);
-        fit.min(u64::from(bundles_y)) as u32
-    }
-
     /// Dispatches the ray caster over the whole image, each dispatch until none of its
     /// bundles stopped; where bundles cannot stop between the chunks of a span there (their
     /// sums do not fit one binding), a bundle whose next span is too long for one invocation
@@ -258,7 +247,9 @@ impl Gpu {
         let rgba = self.buffer("rgba", 16 * n_px, RW, None);
         let depth = self.buffer("depth", 4 * n_px, RW, None);
         let samples = self.buffer("samples", 4 * bundles, RW, None);
-        let rows = self.cast_band_rows(groups);
+        // The rows of bundles whose span sums fit (see `cast_bands`).
+        let per_row = CHUNK_SUMS_PER_BUNDLE * u64::from(groups.0);
+        let rows = self.band_rows(per_row, MAX_CHUNK_SUMS_BYTES, groups.1);
         let band_bundles = u64::from(rows) * u64::from(groups.0);
         let [state, sums, resume] = self.bundle_resume_buffers(bundles, band_bundles);
         let binds = [

@@ -140,7 +140,9 @@ impl Gpu {
         };
         let t = Instant::now();
         let mut su = surface_uniform(surfaces);
-        su.band_rows = self.band_rows(w, params.grid.bundle, ctx.u.bundles_y);
+        // The walks in progress of a row of bundles.
+        let per_row = WALK_BYTES * u64::from(w) * u64::from(params.grid.bundle);
+        su.band_rows = self.band_rows(per_row, MAX_RESUME_BYTES, ctx.u.bundles_y);
         let io = self.surface_buffers(&ctx, &su, params, tf, n_px);
         let binds = [
             ("P", &io.frame),
@@ -176,18 +178,6 @@ impl Gpu {
         ctx.stats.plan = None;
         let stats = self.finish(ctx, Image::new(0, 0))?.stats;
         Ok((image, stats))
-    }
-
-    /// Rows of bundles a band of the walk covers: where a loop limit can stop the walks, as
-    /// many as keep those in progress within one binding (at least one: a row that does not
-    /// fit gets no room, and what passes the limit is refused); else all.
-    fn band_rows(&self, width: u32, bundle: u32, bundles_y: u32) -> u32 {
-        if !self.bounded() {
-            return bundles_y;
-        }
-        let per_row = WALK_BYTES * u64::from(width) * u64::from(bundle);
-        let fit = (self.max_binding.min(MAX_RESUME_BYTES) / per_row).max(1);
-        fit.min(u64::from(bundles_y)) as u32
     }
 
     /// Walks the rays band by band of `su.band_rows` rows of bundles, each band dispatched
