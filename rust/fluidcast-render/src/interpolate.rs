@@ -166,19 +166,39 @@ pub fn smallest_footprint_px(particles: &Particles, frame: &ViewFrame) -> f64 {
 /// `params` with every pixel not in `cast` given an empty depth range, so that a ray caster
 /// casts exactly the pixels of `cast` (row-major, one per pixel).
 pub fn pass_params(params: &RenderParams, cast: &[bool]) -> RenderParams {
-    let w = params.width as usize;
-    let limits: Vec<f32> = cast
-        .par_iter()
-        .enumerate()
-        .map(|(k, &c)| match c {
-            true => params.depth_limit_at((k % w) as u32, (k / w) as u32) as f32,
-            false => f32::NEG_INFINITY,
-        })
-        .collect();
+    let limits = per_pixel(params.width, params.height, |k, i, j| match cast[k] {
+        true => params.depth_limit_at(i, j) as f32,
+        false => f32::NEG_INFINITY,
+    });
     RenderParams {
         depth_limit: Some(Arc::from(limits)),
         ..params.clone()
     }
+}
+
+/// `f(k, i, j)` for every pixel (i, j) of a `w` × `h` image, `k` its row-major index, in
+/// row-major order, rows in parallel: the whole-image masks of the passes without the two
+/// integer divisions per pixel that finding (i, j) from `k` takes (a third of their time at
+/// 1920 × 1080).
+fn per_pixel<T: Copy + Default + Send>(
+    w: u32,
+    h: u32,
+    f: impl Fn(usize, u32, u32) -> T + Sync,
+) -> Vec<T> {
+    let mut out = vec![T::default(); w as usize * h as usize];
+    if w == 0 {
+        return out;
+    }
+    out.par_chunks_mut(w as usize)
+        .enumerate()
+        .for_each(|(j, row)| {
+            let k0 = j * w as usize;
+            for (i, v) in row.iter_mut().enumerate() {
+                *v = f(k0 + i, i as u32, j as u32);
+            }
+        });
+    debug_assert_eq!(out.len(), w as usize * h as usize);
+    out
 }
 
 /// One lattice line of a stencil: its column (or row), Catmull–Rom weight, and whether it is
@@ -426,17 +446,14 @@ pub fn cast_refined<E>(
     let (w, h) = (params.width, params.height);
     let n = w as usize * h as usize;
     // The first pass: the lattice, and every pixel of a bundle not refined.
+    // The bundle column of each image column (`bundle_of` without its divisions per pixel).
+    let d = params.grid.bundle.max(1);
+    let (columns, per_row) = ((0..w).map(|i| i / d).collect::<Vec<u32>>(), w.div_ceil(d));
     let in_refined = |i: u32, j: u32| {
-        let b = fluidcast_grid::bundle_of(w, params.grid.bundle, i, j);
+        let b = (j / d * per_row + columns[i as usize]) as usize;
         refined.get(b).copied().unwrap_or(false)
     };
-    let lattice: Vec<bool> = (0..n)
-        .into_par_iter()
-        .map(|k| {
-            let (i, j) = ((k % w as usize) as u32, (k / w as usize) as u32);
-            on_lattice(i, j) || !in_refined(i, j)
-        })
-        .collect();
+    let lattice = per_pixel(w, h, |_, i, j| on_lattice(i, j) || !in_refined(i, j));
     let mut stages = Vec::with_capacity(4);
     let mut t = Instant::now();
     let mut lap = |name: &'static str| {
@@ -447,14 +464,10 @@ pub fn cast_refined<E>(
     lap("lattice");
     // Pixels whose rays composite nothing (outside a screen tile, behind geometry at the
     // eye) are neither estimated nor cast again: the lattice pass left them empty.
-    let settled: Vec<bool> = (0..n)
-        .into_par_iter()
-        .map(|k| {
-            let (near, far) =
-                params.depth_range_at((k % w as usize) as u32, (k / w as usize) as u32);
-            lattice[k] || far <= near.max(0.0)
-        })
-        .collect();
+    let settled = per_pixel(w, h, |k, i, j| {
+        let (near, far) = params.depth_range_at(i, j);
+        lattice[k] || far <= near.max(0.0)
+    });
     let est = estimates(image, &settled, params, frame, tolerance);
     let accepted = accepted_in_smooth_bundles(&est, params, n);
     let rest: Vec<bool> = (0..n)

@@ -558,7 +558,8 @@ mod tests {
         for g in all.chunks(LANES) {
             assert_eq!(extent(g), (4, 2), "{g:?}");
         }
-        let (lattice, between): (Vec<(usize, usize)>, Vec<(usize, usize)>) =
+        type Pixels = Vec<(usize, usize)>;
+        let (lattice, between): (Pixels, Pixels) =
             all.iter().partition(|&&(i, j)| i % 2 == 0 && j % 2 == 0);
         for g in lattice.chunks(LANES) {
             assert_eq!(extent(g), (3, 7), "{g:?}");
