@@ -180,11 +180,14 @@ fn wgsl_name(prefix: &str, name: &str) -> String {
 }
 
 /// Constants the Rust side owns, prepended to every shader: the transfer-function size limit,
-/// the sampling plan's probe (which bundles, and the saving that pays), and the kernel and
-/// field codes.
+/// the sampling plan's probe (which bundles, and the saving that pays) and longest span, and
+/// the kernel and field codes.
 pub(crate) fn wgsl_prelude() -> String {
-    use fluidcast_plan::{PROBE_ROW_SHIFT, PROBE_SAVING_DEN, PROBE_SAVING_NUM, PROBE_STRIDE};
+    use fluidcast_plan::{
+        MAX_SPAN_SAMPLES, PROBE_ROW_SHIFT, PROBE_SAVING_DEN, PROBE_SAVING_NUM, PROBE_STRIDE,
+    };
     let mut s = format!("const MAX_TF_POINTS: u32 = {MAX_TF_POINTS}u;\n");
+    s += &format!("const MAX_SPAN_SAMPLES: u32 = {MAX_SPAN_SAMPLES}u;\n");
     s += &format!("const PROBE_STRIDE: u32 = {PROBE_STRIDE}u;\n");
     s += &format!("const PROBE_ROW_SHIFT: u32 = {PROBE_ROW_SHIFT}u;\n");
     s += &format!("const PROBE_SAVING_NUM: u32 = {PROBE_SAVING_NUM}u;\n");

@@ -93,7 +93,7 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
 const RESUME_FRESH: u32 = u32::MAX;
 
 /// Samples per span (raycast.wgsl's MAXS).
-const MAXS: u64 = 64;
+const MAXS: u64 = fluidcast_plan::MAX_SPAN_SAMPLES as u64;
 
 /// The most bytes of span sums kept so that bundles can stop between chunks of a span
 /// (raycast.wgsl's `chunk_sums`: 2 MAXS floats per ray, for one band of rows of bundles):

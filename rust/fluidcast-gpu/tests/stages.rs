@@ -228,6 +228,14 @@ fn gpu_grid_and_plan_match_the_cpu_mirror() {
                 s.name
             );
             assert_eq!(gs.unanalysed_bundles, cs.unanalysed_bundles, "{}", s.name);
+            // Cell merging, full-rate runs included (up to MAX_SPAN_SAMPLES a span): the
+            // same rule on both, up to the rare cells above.
+            let (cm, gm) = (cs.merged_cells as f64, gs.merged_cells as f64);
+            assert!(
+                (cm - gm).abs() <= 0.02 * cm + 2.0 && (cm > 0.0 || adaptive.tolerance.is_some()),
+                "{} {mode}: cells merged CPU {cm}, GPU {gm}",
+                s.name
+            );
             if adaptive.tolerance.is_some() && adaptive.probe {
                 probed[usize::from(cs.unanalysed_bundles > 0)] += 1;
             }

@@ -32,7 +32,10 @@
 //!   relaxed plans use the rule ([`PlanParams::uses_surface_cells`]); strict bounds need none.
 //! * Only cells with the same chosen level are merged, so merged cells sample exactly the
 //!   planned positions (the paper also merges a cell into a coarser neighbour at its finer
-//!   level) and the bound stays a bound.
+//!   level) and the bound stays a bound. Runs merge while the span samples at most
+//!   [`MAX_SPAN_SAMPLES`] depths, full-rate cells included (up to 4 cells of 16 samples):
+//!   the ray caster's work per particle reference is then done once per span, not once per
+//!   cell the support crosses.
 //! * Early ray termination at transmittance `min_transmittance` can change a pixel by at most
 //!   that much, so the greedy keeps the bound below `E_I − min_transmittance`.
 //! * The level cap (Sec. 4.2: a cell's strict bound at level l no wider than E_I) is taken
@@ -73,6 +76,12 @@ use probe::{is_probe_bundle, probe_pays};
 pub use probe::{PROBE_ROW_SHIFT, PROBE_SAVING_DEN, PROBE_SAVING_NUM, PROBE_STRIDE};
 pub use tfbounds::{TfBounds, TfRange};
 
+/// The most depth samples one span of the plan takes (a merged run of cells, see
+/// [`Span`]): the ray casters' per-span sums hold this many (the CPU's `SpanSums`, the GPU's
+/// `MAXS` in raycast.wgsl, which the WGSL prelude takes from here). D_z is at most 64
+/// ([`fluidcast_grid::GridParams::validate`]), so one cell always fits.
+pub const MAX_SPAN_SAMPLES: u32 = 64;
+
 /// A run of consecutive cells of one bundle that the ray caster treats as one: `count`
 /// (a power of two) cells merged, sampled every `2^level` depth samples, or a single cell
 /// drawn as a super-pixel.
@@ -86,6 +95,18 @@ pub struct Span {
     pub level: u8,
     /// Super-pixel value (I rgb, T), the midpoint of the cell's full-rate bound.
     pub superpixel: Option<[f32; 4]>,
+}
+
+impl Span {
+    /// Cell `first` alone at full rate.
+    pub fn full_rate(first: u32) -> Span {
+        Span {
+            first,
+            count: 1,
+            level: 0,
+            superpixel: None,
+        }
+    }
 }
 
 /// Per-bundle results of the analysis, for diagnostics.

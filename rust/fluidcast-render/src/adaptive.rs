@@ -240,8 +240,11 @@ impl BundleScratch {
     fn new(bundle: usize, depth_samples: usize) -> BundleScratch {
         let slots = bundle * bundle.div_ceil(LANES) * LANES;
         BundleScratch {
-            // A span samples at most 64 depths (the plan caps spans at 4 cells of 16).
-            sums: SpanSums::new(slots, depth_samples.max(64)),
+            // A span samples at most MAX_SPAN_SAMPLES depths (the plan's merging keeps to it).
+            sums: SpanSums::new(
+                slots,
+                depth_samples.max(fluidcast_plan::MAX_SPAN_SAMPLES as usize),
+            ),
             zs: SpanDepths::default(),
             local: Vec::new(),
             live: vec![false; slots],

@@ -44,7 +44,9 @@ pub use adaptive::{
 };
 pub use crop::crop_to_box;
 pub use fluidcast_grid::{support_depth_extent, GridError, GridParams, SampleDepths};
-pub use fluidcast_plan::{BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan};
+pub use fluidcast_plan::{
+    BundleSummary, PlanError, PlanParams, PlanStats, SamplingPlan, MAX_SPAN_SAMPLES,
+};
 pub use object_space::render_object_space;
 pub use overlay::render_over_surfaces;
 pub use perspective::{render_perspective_grid, tile_margin, MAX_CELL, SLAB};

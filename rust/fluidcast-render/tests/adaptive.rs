@@ -13,7 +13,9 @@
 use std::path::PathBuf;
 
 use fluidcast_image::{compare, Image};
-use fluidcast_render::{render_adaptive, render_reference, GridParams, PlanParams, RenderParams};
+use fluidcast_render::{
+    render_adaptive, render_reference, GridParams, PlanParams, RenderParams, MAX_SPAN_SAMPLES,
+};
 use fluidcast_sph::{
     FieldKind, Kernel, ParticleSpec, Particles, Quantity, RadiusSource, VolumeSource,
 };
@@ -208,8 +210,21 @@ fn off_equals_reference_at_the_same_samples() {
             "{parallel} {field:?} {kernel:?}: depth differs by {dz}"
         );
         assert_eq!(rs.samples, a.stats.samples, "same samples composited");
-        // At full rate every cell reads each of its references once.
-        assert_eq!(a.stats.plan.as_ref().unwrap().refs_sampled, a.stats.pairs);
+        // At full rate every span (a run of up to MAX_SPAN_SAMPLES depths) reads each
+        // particle of its cells once: the distinct particles of each span's cells.
+        let distinct: usize = (0..a.grid.bundle_count())
+            .flat_map(|b| a.plan.bundle_spans(b).iter())
+            .map(|s| {
+                let cells = &a.grid.cells[s.first as usize..(s.first + s.count) as usize];
+                let refs = cells
+                    .iter()
+                    .flat_map(|c| &a.grid.refs[c.start as usize..c.end as usize]);
+                refs.collect::<std::collections::BTreeSet<_>>().len()
+            })
+            .sum();
+        let plan = a.stats.plan.as_ref().unwrap();
+        assert_eq!(plan.refs_sampled, distinct as u64);
+        assert!(plan.merged_cells > 0 && plan.refs_sampled < a.stats.pairs);
     }
 }
 
@@ -715,11 +730,11 @@ fn relaxed_plan_coarsens_what_the_front_hides() {
 }
 
 /// Cell merging (Sec. 6.2) joins only what samples alike, and all of it: each bundle's spans
-/// cover its cells in order; a span is one cell, or 2^k consecutive cells of one level l > 0
-/// with k <= l, its first cell's depth index a multiple of 2^k (so a span never samples more
-/// than D_z depths); a super-pixel stands alone; and no two neighbouring spans could still be
-/// joined (same level and size below 2^l, aligned, adjacent). Strict and relaxed plans on
-/// the depth ramp, where many cells coarsen.
+/// cover its cells in order; a span is one cell, or 2^k consecutive cells of one level l
+/// (full rate included) that sample at most `MAX_SPAN_SAMPLES` depths (2^k · D_z / 2^l), its
+/// first cell's depth index a multiple of 2^k; a super-pixel stands alone; and no two
+/// neighbouring spans could still be joined (same level and size, aligned, adjacent, within
+/// the samples). Strict and relaxed plans on the depth ramp, where many cells coarsen.
 #[test]
 fn merged_spans_are_aligned_runs_of_one_level_and_maximal() {
     let mut merged = 0;
@@ -828,17 +843,16 @@ fn check_spans(
                 continue;
             }
             assert!(plan.cell_levels[f..f + c].iter().all(|&l| l == s.level));
-            assert!(
-                c == 1 || (s.level > 0 && c <= 1 << s.level),
-                "bundle {b}: {s:?}"
-            );
+            let dz = grid.params.depth_samples as usize;
+            let fits = |cells: usize| (cells * dz) >> s.level <= MAX_SPAN_SAMPLES as usize;
+            assert!(c == 1 || fits(c), "bundle {b}: {s:?}");
             assert_eq!(z0 % c, 0, "bundle {b}: {s:?} not aligned");
             merged += (c - 1) as u64;
             if let Some(t) = spans.get(k + 1) {
                 let joinable = t.superpixel.is_none()
                     && t.level == s.level
                     && t.count as usize == c
-                    && c < 1 << s.level
+                    && fits(2 * c)
                     && z0.is_multiple_of(2 * c)
                     && grid.cells[t.first as usize].z as usize == z0 + c;
                 assert!(!joinable, "bundle {b}: {s:?} and {t:?} left apart");

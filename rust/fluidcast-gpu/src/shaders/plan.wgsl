@@ -532,7 +532,8 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
             back = over(best, back);
         }
     }
-    // Cell merging (Sec. 6.2): pairs of aligned runs of equal size and level, level by level.
+    // Cell merging (Sec. 6.2): pairs of aligned runs of equal size and level, level by level,
+    // while the span samples at most MAX_SPAN_SAMPLES depths (the CPU's `merge_runs`).
     for (var c = c0; c < c1; c = c + 1u) {
         spans[c] = span_of(c, levels[c]);
     }
@@ -548,7 +549,8 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
                 let bs = spans[c0 + i + 1u];
                 let za = cells[a.first].z;
                 let zb = cells[bs.first].z;
-                if (a.superpixel == 0u && bs.superpixel == 0u && a.level == bs.level && a.level > m
+                if (a.superpixel == 0u && bs.superpixel == 0u && a.level == bs.level
+                    && ((2u * size * P.dz) >> a.level) <= MAX_SPAN_SAMPLES
                     && a.count == size && bs.count == size && za % (2u * size) == 0u && zb == za + size) {
                     a.count = 2u * size;
                     step = 2u;

@@ -36,7 +36,7 @@
 // leaves it to the host's banded dispatches (see defer_span).
 @group(0) @binding(18) var<uniform> band: vec4<u32>;
 
-const MAXS: u32 = 64u;   // samples per span (D_z * merged cells / 2^level <= 64)
+const MAXS: u32 = MAX_SPAN_SAMPLES;   // samples per span (D_z * merged cells / 2^level)
 const CHUNK: u32 = 64u;  // particles per workgroup load (one per invocation)
 const RESUME_FRESH: u32 = 0xffffffffu;
 const RESUME_DONE: u32 = 0xfffffffeu;
