@@ -32,10 +32,10 @@
 //!   relaxed plans use the rule ([`PlanParams::uses_surface_cells`]); strict bounds need none.
 //! * Only cells with the same chosen level are merged, so merged cells sample exactly the
 //!   planned positions (the paper also merges a cell into a coarser neighbour at its finer
-//!   level) and the bound stays a bound. Runs merge while the span samples at most
-//!   [`MAX_SPAN_SAMPLES`] depths, full-rate cells included (up to 4 cells of 16 samples):
-//!   the ray caster's work per particle reference is then done once per span, not once per
-//!   cell the support crosses.
+//!   level) and the bound stays a bound. Beyond the paper's D_z samples a span grows, full
+//!   rate included, up to [`MAX_SPAN_SAMPLES`] depths where that pays (`merge_pays`): the
+//!   ray caster's work per particle reference is then done once per span, not once per cell
+//!   the support crosses.
 //! * Early ray termination at transmittance `min_transmittance` can change a pixel by at most
 //!   that much, so the greedy keeps the bound below `E_I − min_transmittance`.
 //! * The level cap (Sec. 4.2: a cell's strict bound at level l no wider than E_I) is taken

@@ -817,6 +817,23 @@ fn counted_summary(levels: &[u8]) -> [f32; 4] {
 
 /// Checks [`merged_spans_are_aligned_runs_of_one_level_and_maximal`]'s rules on every
 /// bundle of a plan; returns the number of cells merged into a neighbour.
+/// Whether merging the run of `a.1` cells from cell `a.0` with the run `b` behind it pays:
+/// the particles of `a`'s last cell that `b` also holds (what the merge saves reading again)
+/// are at least `b`'s other distinct particles (what it may read in vain). Counted from the
+/// cells' references, without their merge bits.
+fn pays(grid: &fluidcast_grid::PerspectiveGrid, a: (usize, usize), b: (usize, usize)) -> bool {
+    use std::collections::BTreeSet;
+    let refs = |c: &fluidcast_grid::Cell| &grid.refs[c.start as usize..c.end as usize];
+    let last: BTreeSet<u32> = refs(&grid.cells[a.0 + a.1 - 1]).iter().copied().collect();
+    let behind: BTreeSet<u32> = grid.cells[b.0..b.0 + b.1]
+        .iter()
+        .flat_map(refs)
+        .copied()
+        .collect();
+    let shared = last.intersection(&behind).count();
+    shared >= behind.len() - shared
+}
+
 fn check_spans(
     grid: &fluidcast_grid::PerspectiveGrid,
     plan: &fluidcast_render::SamplingPlan,
@@ -846,6 +863,13 @@ fn check_spans(
             let dz = grid.params.depth_samples as usize;
             let fits = |cells: usize| (cells * dz) >> s.level <= MAX_SPAN_SAMPLES as usize;
             assert!(c == 1 || fits(c), "bundle {b}: {s:?}");
+            // A span beyond D_z samples merged two halves where that pays.
+            let within_dz = |cells: usize| (cells * dz) >> s.level <= dz;
+            let h = c / 2;
+            assert!(
+                c == 1 || within_dz(c) || pays(grid, (f, h), (f + h, h)),
+                "bundle {b}: {s:?} merged where it does not pay"
+            );
             assert_eq!(z0 % c, 0, "bundle {b}: {s:?} not aligned");
             merged += (c - 1) as u64;
             if let Some(t) = spans.get(k + 1) {
@@ -854,7 +878,8 @@ fn check_spans(
                     && t.count as usize == c
                     && fits(2 * c)
                     && z0.is_multiple_of(2 * c)
-                    && grid.cells[t.first as usize].z as usize == z0 + c;
+                    && grid.cells[t.first as usize].z as usize == z0 + c
+                    && (within_dz(2 * c) || pays(grid, (f, c), (t.first as usize, c)));
                 assert!(!joinable, "bundle {b}: {s:?} and {t:?} left apart");
             }
         }

@@ -444,6 +444,27 @@ fn level_error(front_t: f32, cell: Bound, back: Bound) -> f32 {
     return front_t * max(max(colour.x, colour.y), max(colour.z, w.w * back.hi.w));
 }
 
+/// References a run of cells reads, each particle once (the CPU's `merge_runs`' `reads`).
+fn run_reads(first: u32, count: u32) -> u32 {
+    var n = 0u;
+    for (var c = first; c < first + count; c = c + 1u) {
+        let cl = cells[c];
+        n = n + select(cl.unique_end, cl.end, c + 1u == first + count) - cl.start;
+    }
+    return n;
+}
+
+/// Whether merging run `a` with the run `b` behind it pays (the CPU's `merge_runs`' `pays`):
+/// a merge within D_z samples always; a longer one where the references it saves (those of
+/// a's last cell that b's first repeats) are at least those it may read in vain (b's others,
+/// should the rays stop inside a).
+fn merge_pays(a: Span, b: Span) -> bool {
+    let last = cells[a.first + a.count - 1u];
+    let repeated = last.end - last.unique_end;
+    let others = max(run_reads(b.first, b.count), repeated) - repeated;
+    return ((2u * a.count * P.dz) >> a.level) <= P.dz || repeated >= others;
+}
+
 fn span_of(c: u32, level: u32) -> Span {
     let sp = level == 255u;
     return Span(c, 1u, select(level, 0u, sp), select(0u, 1u, sp), 0u, 0u, 0u, 0u, vec4<f32>(0.0));
@@ -551,7 +572,8 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
                 let zb = cells[bs.first].z;
                 if (a.superpixel == 0u && bs.superpixel == 0u && a.level == bs.level
                     && ((2u * size * P.dz) >> a.level) <= MAX_SPAN_SAMPLES
-                    && a.count == size && bs.count == size && za % (2u * size) == 0u && zb == za + size) {
+                    && a.count == size && bs.count == size && za % (2u * size) == 0u && zb == za + size
+                    && merge_pays(a, bs)) {
                     a.count = 2u * size;
                     step = 2u;
                 }
