@@ -220,8 +220,9 @@ fn count_spans(grid: &PerspectiveGrid, first: u32, spans: &[Span], stats: &mut P
     debug_assert!(spans.first().is_none_or(|s| s.first == first));
 }
 
-/// Bundle `b` at full rate, one span per cell, without an analysis: `bound` is what its
-/// plan and full-rate bounds claim (none is known: [`Bound::ANY`]).
+/// Bundle `b` at full rate without an analysis, its cells merged into spans where that pays
+/// ([`merge_runs`]): `bound` is what its plan and full-rate bounds claim (none is known:
+/// [`Bound::ANY`]).
 pub(crate) fn full_rate_bundle(grid: &PerspectiveGrid, b: usize, bound: Bound) -> BundlePlan {
     let cells = grid.bundle_cells(b);
     let first = grid.bundle_first_cell(b) as u32;
