@@ -23,6 +23,7 @@ use fluidcast_sph::Particles;
 use fluidcast_view::ViewFrame;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::ops::Range;
 
 use pairs::{bundle_offsets, chunk_count, Foot, Footprint};
 use sort::sorted_cells;
@@ -570,6 +571,23 @@ pub struct Cell {
     pub end: u32,
 }
 
+/// The ranges of [`PerspectiveGrid::refs`] a run of consecutive cells `cells` reads as one
+/// ([`PerspectiveGrid::merged_refs`]): each cell's, less the references the next cell
+/// repeats (the merge bit).
+pub fn merged_ranges(cells: &[Cell]) -> impl Iterator<Item = Range<usize>> + '_ {
+    let last = cells.len().saturating_sub(1);
+    cells.iter().enumerate().map(move |(i, c)| {
+        let end = if i == last { c.end } else { c.unique_end };
+        c.start as usize..end as usize
+    })
+}
+
+/// How many references [`PerspectiveGrid::merged_refs`] yields for `cells`, without reading
+/// them.
+pub fn merged_ref_count(cells: &[Cell]) -> usize {
+    merged_ranges(cells).map(|r| r.len()).sum()
+}
+
 /// Grid resolution: bundle size D_xy in pixels and depth samples per cell D_z.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GridParams {
@@ -774,11 +792,7 @@ impl PerspectiveGrid {
     /// The particles referenced by a run of consecutive cells `cells` (a merged cell),
     /// each once: the merge bit drops the references the next cell repeats.
     pub fn merged_refs<'a>(&'a self, cells: &'a [Cell]) -> impl Iterator<Item = u32> + 'a {
-        let last = cells.len().saturating_sub(1);
-        cells.iter().enumerate().flat_map(move |(i, c)| {
-            let end = if i == last { c.end } else { c.unique_end };
-            self.refs[c.start as usize..end as usize].iter().copied()
-        })
+        merged_ranges(cells).flat_map(move |r| self.refs[r].iter().copied())
     }
 
     /// Total particle–cell pairs.

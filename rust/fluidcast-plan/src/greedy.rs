@@ -5,7 +5,7 @@ use crate::analyse::{analyse_cells, CellSamples, View};
 use crate::params::{FieldParams, PlanParams};
 use crate::probe::cast_work;
 use crate::{Bound, BundlePlan, BundleSummary, PlanStats, SamplingPlan, Span, MAX_SPAN_SAMPLES};
-use fluidcast_grid::{Cell, PerspectiveGrid};
+use fluidcast_grid::{merged_ref_count, Cell, PerspectiveGrid};
 
 #[derive(Clone, Copy, PartialEq)]
 pub(crate) enum Choice {
@@ -193,31 +193,21 @@ fn merge_pays(cells: &[Cell], first: u32, dz: u32, a: &Span, b: &Span) -> bool {
         return true;
     }
     let cell = |c: u32| &cells[(c - first) as usize];
-    let reads = (b.first..b.first + b.count).fold(0, |n, c| {
-        let cl = cell(c);
-        let end = if c + 1 == b.first + b.count {
-            cl.end
-        } else {
-            cl.unique_end
-        };
-        n + end - cl.start
-    });
+    let back = &cells[(b.first - first) as usize..][..b.count as usize];
+    let reads = merged_ref_count(back) as u32;
     let last = cell(a.first + a.count - 1);
     let shared = last.end - last.unique_end;
     shared >= reads.saturating_sub(shared)
 }
 
 /// Counts into `stats` the cells merged into a neighbour and the particle references the ray
-/// caster reads (each particle once per span) of a bundle's `spans`, its first cell `first`.
-fn count_spans(grid: &PerspectiveGrid, first: u32, spans: &[Span], stats: &mut PlanStats) {
+/// caster reads (each particle once per span) of a bundle's `spans`.
+fn count_spans(grid: &PerspectiveGrid, spans: &[Span], stats: &mut PlanStats) {
     for s in spans.iter().filter(|s| s.superpixel.is_none()) {
         stats.merged_cells += (s.count - 1) as u64;
-        let lo = s.first as usize;
-        stats.refs_sampled += grid
-            .merged_refs(&grid.cells[lo..lo + s.count as usize])
-            .count() as u64;
+        let run = &grid.cells[s.first as usize..][..s.count as usize];
+        stats.refs_sampled += merged_ref_count(run) as u64;
     }
-    debug_assert!(spans.first().is_none_or(|s| s.first == first));
 }
 
 /// Bundle `b` at full rate without an analysis, its cells merged into spans where that pays
@@ -245,7 +235,7 @@ pub(crate) fn full_rate_bundle(grid: &PerspectiveGrid, b: usize, bound: Bound) -
         grid.params.max_level() as usize,
         grid.params.depth_samples,
     );
-    count_spans(grid, first, &spans, &mut stats);
+    count_spans(grid, &spans, &mut stats);
     BundlePlan {
         spans,
         levels: vec![0; n],
@@ -333,7 +323,7 @@ pub(crate) fn plan_bundle(
 
     // Statistics and the bundle summary.
     let (levels, counts) = tally(&choice, &mut stats);
-    count_spans(grid, first, &spans, &mut stats);
+    count_spans(grid, &spans, &mut stats);
     let work = cells.iter().zip(&choice).fold([0, 0], |[f, p], (c, &ch)| {
         let refs = c.end - c.start;
         [
