@@ -87,25 +87,14 @@ fn normalise<T: Copy>(pts: &mut [(f64, T)]) {
     }
 }
 
+/// The piecewise-linear value of the node table `pts` at map position `t`: the first node at
+/// or right of `t` closes the segment (a binary search: VTK's and ParaView's tables have 1024
+/// nodes); the first node's value left of it, the last's right of the last.
 fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T {
-    // The first node at or right of t closes the segment (a binary search: VTK's and
-    // ParaView's tables have 1024 nodes and this runs once per sample).
-    lerp_in(pts, t, mix, |t| pts.partition_point(|p| p.0 < t))
-}
-
-/// [`lerp_at`] with the segment search given: `closing(t)` is the index of the first node
-/// at or right of `t` (`pts.partition_point(|p| p.0 < t)`).
-#[inline]
-fn lerp_in<T: Copy>(
-    pts: &[(f64, T)],
-    t: f64,
-    mix: impl Fn(T, T, f64) -> T,
-    closing: impl Fn(f64) -> usize,
-) -> T {
     if t <= pts[0].0 {
         return pts[0].1;
     }
-    let i = closing(t);
+    let i = pts.partition_point(|p| p.0 < t);
     if i == pts.len() || i == 0 {
         // Right of the last node (or t NaN, which no node is left of).
         return pts[pts.len() - 1].1;
@@ -319,62 +308,133 @@ impl TransferFunction {
 }
 
 /// Equal parts of [0, 1] that [`TfLookup`] indexes.
-const BUCKETS: usize = 1024;
+const BUCKETS: usize = 4096;
 
-/// For each part `b` of [`BUCKETS`] (the map positions `[b, b+1)/BUCKETS`), the first node at
-/// or right of its start; `BUCKETS + 1` entries.
-fn bucket_starts<T>(pts: &[(f64, T)]) -> Vec<u32> {
-    (0..=BUCKETS)
-        .map(|b| pts.partition_point(|p| p.0 < b as f64 / BUCKETS as f64) as u32)
-        .collect()
+/// One node table's linear piece over a [`TfLookup`] interval: `a + delta·f` with `f = (t −
+/// org)·inv_d` (at most 1), the segment of [`lerp_at`] from node `a` (at `org`) to the next
+/// (`delta` = its value − `a`, `inv_d` = 1/its distance); `delta` 0 and `inv_d` 0 left of the
+/// first node and right of the last.
+#[derive(Debug, Clone, Copy)]
+struct Piece<T> {
+    org: f64,
+    inv_d: f64,
+    a: T,
+    delta: T,
 }
 
-/// The first node of `pts` at or right of `t`, searching only the nodes of `t`'s bucket:
-/// `pts.partition_point(|p| p.0 < t)` exactly. `t·BUCKETS` is exact (a power of two), so
-/// every node before `starts[b]` lies left of `b/BUCKETS ≤ t` and every node from
-/// `starts[b + 1]` on at or right of `(b + 1)/BUCKETS > t`.
-#[inline]
-fn closing_node<T>(pts: &[(f64, T)], starts: &[u32], t: f64) -> usize {
-    if !(0.0..1.0).contains(&t) {
-        return pts.partition_point(|p| p.0 < t);
+impl<T: Copy> Piece<T> {
+    /// The piece of `pts` that holds map position `t`, as [`lerp_at`] finds it.
+    fn of(pts: &[(f64, T)], t: f64, sub: impl Fn(T, T) -> T) -> Piece<T> {
+        let i = pts.partition_point(|p| p.0 < t);
+        if t <= pts[0].0 || i == 0 || i == pts.len() {
+            let v = if t <= pts[0].0 {
+                pts[0].1
+            } else {
+                pts[pts.len() - 1].1
+            };
+            return Piece {
+                org: 0.0,
+                inv_d: 0.0,
+                a: v,
+                delta: sub(v, v),
+            };
+        }
+        let (a, b) = (pts[i - 1], pts[i]);
+        Piece {
+            org: a.0,
+            inv_d: 1.0 / (b.0 - a.0),
+            a: a.1,
+            delta: sub(b.1, a.1),
+        }
     }
-    let b = (t * BUCKETS as f64) as usize;
-    let (lo, hi) = (starts[b] as usize, starts[b + 1] as usize);
-    lo + pts[lo..hi].partition_point(|p| p.0 < t)
+
+    /// The piece's share of the way to its next node at `t`.
+    #[inline(always)]
+    fn f(&self, t: f64) -> f64 {
+        ((t - self.org) * self.inv_d).min(1.0)
+    }
 }
 
-/// A transfer function with its node tables indexed for many lookups: [`TfLookup::eval`]
-/// equals [`TransferFunction::eval`] bit for bit, without a binary search over every node
-/// (ParaView's colour maps have up to 1024). Built once per render.
+/// A transfer function indexed for many lookups: both node tables cut at every node of
+/// either into intervals `(upper[k − 1], upper[k]]`, on each of which colour and opacity are
+/// one linear piece, found through [`BUCKETS`] equal parts of [0, 1]. [`TfLookup::eval`]
+/// equals [`TransferFunction::eval`] to a few units in the last place (a product by the
+/// segment's reciprocal length in place of a quotient; tested to 1e-12), with one short
+/// search in place of a binary search over each table (ParaView's colour maps have up to 1024
+/// nodes) and one division in place of three: the colour and opacity of every sample cast.
+/// Built once per render.
 #[derive(Debug, Clone)]
 pub struct TfLookup<'a> {
     /// The transfer function looked up.
     pub tf: &'a TransferFunction,
-    colors: Vec<u32>,
-    opacity: Vec<u32>,
+    /// The intervals' upper ends, ascending; the last is +∞.
+    upper: Vec<f64>,
+    colour: Vec<Piece<[f64; 3]>>,
+    opacity: Vec<Piece<f64>>,
+    /// Per part `b` of [`BUCKETS`] (and one beyond), the first interval whose upper end is at
+    /// or right of `b / BUCKETS`.
+    starts: Vec<u32>,
 }
 
 impl<'a> TfLookup<'a> {
     /// The lookup tables of `tf`.
     pub fn new(tf: &'a TransferFunction) -> TfLookup<'a> {
+        let mut upper: Vec<f64> = tf
+            .colors
+            .iter()
+            .map(|p| p.0)
+            .chain(tf.opacity.iter().map(|p| p.0))
+            .filter(|x| !x.is_nan())
+            .collect();
+        upper.sort_by(f64::total_cmp);
+        upper.dedup();
+        upper.push(f64::INFINITY);
+        let sub3 = |a: [f64; 3], b: [f64; 3]| [0, 1, 2].map(|k| a[k] - b[k]);
+        let colour = upper
+            .iter()
+            .map(|&u| Piece::of(&tf.colors, u, sub3))
+            .collect();
+        let opacity = upper
+            .iter()
+            .map(|&u| Piece::of(&tf.opacity, u, |a, b| a - b))
+            .collect();
+        let starts = (0..=BUCKETS)
+            .map(|b| upper.partition_point(|&u| u < b as f64 / BUCKETS as f64) as u32)
+            .chain([upper.len() as u32 - 1])
+            .collect();
         TfLookup {
             tf,
-            colors: bucket_starts(&tf.colors),
-            opacity: bucket_starts(&tf.opacity),
+            upper,
+            colour,
+            opacity,
+            starts,
         }
     }
 
     /// Colour and opacity per unit distance at data value `q`, as [`TransferFunction::eval`].
     #[inline]
     pub fn eval(&self, q: f64) -> ([f64; 3], f64) {
+        // The map position as TransferFunction::normalised divides it: at a step of the
+        // map (two nodes at one position) an ulp of t is the step.
         let Some(t) = self.tf.normalised(q) else {
             return ([0.0; 3], 0.0);
         };
-        let (c, o) = (&self.tf.colors, &self.tf.opacity);
+        let k = self.interval(t);
+        let (c, o) = (&self.colour[k], &self.opacity[k]);
+        let f = c.f(t);
         (
-            lerp_in(c, t, mix_rgb, |t| closing_node(c, &self.colors, t)),
-            lerp_in(o, t, mix_scalar, |t| closing_node(o, &self.opacity, t)),
+            [0, 1, 2].map(|i| c.a[i] + c.delta[i] * f),
+            o.a + o.delta * o.f(t),
         )
+    }
+
+    /// The interval that holds map position `t` (in [0, 1]): the first whose upper end is at
+    /// or right of `t`, searched among those that end in `t`'s part of [0, 1].
+    #[inline(always)]
+    fn interval(&self, t: f64) -> usize {
+        let b = ((t * BUCKETS as f64) as usize).min(BUCKETS);
+        let (lo, hi) = (self.starts[b] as usize, self.starts[b + 1] as usize);
+        lo + self.upper[lo..=hi].partition_point(|&u| u < t)
     }
 }
 
@@ -393,7 +453,7 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
-        /// The indexed lookup equals the plain one bit for bit: random node tables with
+        /// The indexed lookup equals the plain one to 1e-12: random node tables with
         /// repeated nodes and nodes on bucket edges, at random values, at the nodes, on
         /// bucket edges, outside the range and at NaN.
         #[test]
@@ -420,8 +480,8 @@ mod tests {
                 .chain([f64::NAN, lo, lo + span, f64::INFINITY, f64::NEG_INFINITY]);
             for q in all {
                 let (a, b) = (lookup.eval(q), tf.eval(q));
-                prop_assert!(a.0.map(f64::to_bits) == b.0.map(f64::to_bits) && a.1.to_bits() == b.1.to_bits(),
-                    "q {}: {:?} vs {:?}", q, a, b);
+                let off = (0..3).map(|k| (a.0[k] - b.0[k]).abs()).fold((a.1 - b.1).abs(), f64::max);
+                prop_assert!(off <= 1e-12, "q {}: {:?} vs {:?}", q, a, b);
             }
         }
     }
