@@ -40,14 +40,16 @@ pub(crate) fn block_key(i: usize, j: usize) -> (usize, usize, usize) {
     (i / 4, j, i % 4)
 }
 
-/// One lane group: up to [`LANES`] rays of a bundle, their origins, directions and |d|²,
+/// One lane group: up to [`LANES`] rays of a bundle, their origins, directions and 1/|d|²,
 /// component-wise, the column and row of each in the bundle (`u16::MAX` on padding lanes), and
 /// the smallest columns × rows box that holds them all.
 #[derive(Debug, Clone, Copy)]
 struct RayGroup {
     o: [[f64; LANES]; 3],
     d: [[f64; LANES]; 3],
-    dd: [f64; LANES],
+    /// 1 / |d|² (for [`RayGroup::near`]) and |d|² (in single precision, for the samples).
+    inv_dd: [f64; LANES],
+    dd32: [f32; LANES],
     col: [u16; LANES],
     row: [u16; LANES],
     cols: (u16, u16),
@@ -60,7 +62,8 @@ impl Default for RayGroup {
             o: [[0.0; LANES]; 3],
             d: [[0.0; LANES]; 3],
             // Padding lanes are never in a footprint; dd = 1 keeps their arithmetic finite.
-            dd: [1.0; LANES],
+            inv_dd: [1.0; LANES],
+            dd32: [1.0; LANES],
             col: [u16::MAX; LANES],
             row: [u16::MAX; LANES],
             cols: (u16::MAX, 0),
@@ -96,7 +99,8 @@ impl RayGroup {
                 g.o[a][l] = ray.o[a];
                 g.d[a][l] = ray.d[a];
             }
-            g.dd[l] = ray.dd;
+            g.inv_dd[l] = 1.0 / ray.dd;
+            g.dd32[l] = ray.dd as f32;
             let (i, j) = (
                 i.min(usize::from(u16::MAX - 1)) as u16,
                 j.min(usize::from(u16::MAX - 1)) as u16,
@@ -131,14 +135,14 @@ impl RayGroup {
         let mut near = Near {
             t: [0.0; LANES],
             r2: [0.0; LANES],
-            dd: self.dd.map(|v| v as f32),
+            dd: self.dd32,
             mask: [0.0; LANES],
         };
         let h2 = p.h() * p.h();
         let mut any = false;
         for l in 0..LANES {
             let (cx, cy, cz) = (p.c[0] - o[0][l], p.c[1] - o[1][l], p.c[2] - o[2][l]);
-            let t = (d[0][l] * cx + d[1][l] * cy + d[2][l] * cz) / self.dd[l];
+            let t = (d[0][l] * cx + d[1][l] * cy + d[2][l] * cz) * self.inv_dd[l];
             let (qx, qy, qz) = (cx - t * d[0][l], cy - t * d[1][l], cz - t * d[2][l]);
             let r2 = qx * qx + qy * qy + qz * qz;
             let (col, row) = (usize::from(self.col[l]), usize::from(self.row[l]));
