@@ -41,8 +41,8 @@ pub(crate) fn block_key(i: usize, j: usize) -> (usize, usize, usize) {
 }
 
 /// One lane group: up to [`LANES`] rays of a bundle, their origins, directions and 1/|d|²,
-/// component-wise, the column and row of each in the bundle (`u16::MAX` on padding lanes), and
-/// the smallest columns × rows box that holds them all.
+/// component-wise, which lanes hold a ray (the others are padding), and the smallest columns ×
+/// rows box of the bundle that holds them all.
 #[derive(Debug, Clone, Copy)]
 struct RayGroup {
     o: [[f64; LANES]; 3],
@@ -50,8 +50,8 @@ struct RayGroup {
     /// 1 / |d|² (for [`RayGroup::near`]) and |d|² (in single precision, for the samples).
     inv_dd: [f64; LANES],
     dd32: [f32; LANES],
-    col: [u16; LANES],
-    row: [u16; LANES],
+    /// Whether the lane holds a ray (not padding).
+    ray: [bool; LANES],
     cols: (u16, u16),
     rows: (u16, u16),
 }
@@ -64,8 +64,7 @@ impl Default for RayGroup {
             // Padding lanes are never in a footprint; dd = 1 keeps their arithmetic finite.
             inv_dd: [1.0; LANES],
             dd32: [1.0; LANES],
-            col: [u16::MAX; LANES],
-            row: [u16::MAX; LANES],
+            ray: [false; LANES],
             cols: (u16::MAX, 0),
             rows: (u16::MAX, 0),
         }
@@ -105,7 +104,7 @@ impl RayGroup {
                 i.min(usize::from(u16::MAX - 1)) as u16,
                 j.min(usize::from(u16::MAX - 1)) as u16,
             );
-            (g.col[l], g.row[l]) = (i, j);
+            g.ray[l] = true;
             g.cols = (g.cols.0.min(i), g.cols.1.max(i));
             g.rows = (g.rows.0.min(j), g.rows.1.max(j));
         }
@@ -122,15 +121,10 @@ impl RayGroup {
     }
 
     /// The closest approach of each lane's ray to `p` (its depth relative to `z_org`); `None`
-    /// when no lane is in `cols` × `rows`, live, and inside the support.
+    /// when no lane's ray is live and passes inside the support. (The footprint that
+    /// [`RayGroup::meets`] tests holds every such ray, so it is not tested lane by lane.)
     #[inline(always)]
-    fn near(
-        &self,
-        p: &ViewParticle,
-        (cols, rows): (&Range<usize>, &Range<usize>),
-        live: &[bool],
-        z_org: f64,
-    ) -> Option<Near> {
+    fn near(&self, p: &ViewParticle, live: &[bool], z_org: f64) -> Option<Near> {
         let (o, d) = (&self.o, &self.d);
         let mut near = Near {
             t: [0.0; LANES],
@@ -145,13 +139,7 @@ impl RayGroup {
             let t = (d[0][l] * cx + d[1][l] * cy + d[2][l] * cz) * self.inv_dd[l];
             let (qx, qy, qz) = (cx - t * d[0][l], cy - t * d[1][l], cz - t * d[2][l]);
             let r2 = qx * qx + qy * qy + qz * qz;
-            let (col, row) = (usize::from(self.col[l]), usize::from(self.row[l]));
-            let on = (col >= cols.start)
-                & (col < cols.end)
-                & (row >= rows.start)
-                & (row < rows.end)
-                & (r2 < h2)
-                & live[l];
+            let on = self.ray[l] & (r2 < h2) & live[l];
             near.t[l] = (t - z_org) as f32;
             near.r2[l] = r2 as f32;
             near.mask[l] = if on { 1.0 } else { 0.0 };
@@ -344,7 +332,7 @@ impl SpanSums {
             }
             let slot = g * LANES;
             let live = &live[slot..][..LANES];
-            if let Some(near) = group.near(p, (&cols, &rows), live, z_org) {
+            if let Some(near) = group.near(p, live, z_org) {
                 self.touch(slot, &near, &at.ks);
                 match kernel {
                     Kernel::CubicSpline => {
@@ -576,11 +564,12 @@ mod tests {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(300))]
-        /// `near` marks exactly the lanes in `cols` × `rows` whose ray is live and passes
-        /// inside the support (as [`Ray::passage`] decides), with each lane's closest
-        /// approach, and is `None` when it marks none; `meets` holds for every group that has
-        /// such a lane. The rays are a random subset of an 11 × 3 bundle, packed densely: a
-        /// group mixes rows, and the last one has padding lanes, never marked.
+        /// `near` marks exactly the lanes whose ray is live and passes inside the support (as
+        /// [`Ray::passage`] decides), with each lane's closest approach, and is `None` when it
+        /// marks none; `meets` holds, for the particle's stored pixel rectangle, for every
+        /// group that has such a lane, and for a footprint `cols` × `rows` that holds any of
+        /// the group's rays. The rays are a random subset of an 11 × 3 bundle, packed
+        /// densely: a group mixes rows, and the last one has padding lanes, never marked.
         #[test]
         fn near_marks_exactly_the_live_lanes_in_reach(
             parallel in any::<bool>(),
@@ -611,14 +600,13 @@ mod tests {
             // The span's origin: somewhere near the particle's depth.
             let z_org = depth + org;
             for (g, group) in bundle.groups.iter().enumerate() {
-                let got = group.near(&p, (&cols, &rows), &live[g * LANES..][..LANES], z_org);
+                let got = group.near(&p, &live[g * LANES..][..LANES], z_org);
                 let mut any = false;
                 for l in 0..LANES {
                     let px = pixels.get(g * LANES + l).copied();
                     let r = px.map(ray);
                     let pass = r.as_ref().and_then(|r| r.passage(&p));
-                    let on = px.is_some_and(|(i, j)| cols.contains(&i) && rows.contains(&j))
-                        && live[g * LANES + l] && pass.is_some();
+                    let on = px.is_some() && live[g * LANES + l] && pass.is_some();
                     any |= on;
                     if let (Some(n), true, Some(r)) = (&got, on, &r) {
                         let (t, r2) = r.closest_approach(&p);
@@ -634,7 +622,14 @@ mod tests {
                     }
                 }
                 prop_assert_eq!(got.is_some(), any, "group {}", g);
-                prop_assert!(!any || group.meets(&cols, &rows), "group {}", g);
+                // The stored rectangle, relative to the bundle, holds every ray that passes.
+                let [a, b, c, d] = fluidcast_grid::stored_rect(&frame, &p, 1e-3, 1e3).map(usize::from);
+                let rel = |v: usize, o: u32| v.saturating_sub(o as usize);
+                let (rc, rr) = (rel(a, x0)..rel(b, x0), rel(c, y0)..rel(d, y0));
+                prop_assert!(!any || group.meets(&rc, &rr), "group {}", g);
+                let holds = (0..LANES).filter_map(|l| pixels.get(g * LANES + l))
+                    .any(|(i, j)| cols.contains(i) && rows.contains(j));
+                prop_assert!(!holds || group.meets(&cols, &rows), "group {}", g);
             }
         }
     }
