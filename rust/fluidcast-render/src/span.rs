@@ -61,7 +61,7 @@ impl Default for RayGroup {
         RayGroup {
             o: [[0.0; LANES]; 3],
             d: [[0.0; LANES]; 3],
-            // Padding lanes are never in a footprint; dd = 1 keeps their arithmetic finite.
+            // Padding lanes hold no ray (never marked); dd = 1 keeps their arithmetic finite.
             inv_dd: [1.0; LANES],
             dd32: [1.0; LANES],
             ray: [false; LANES],
