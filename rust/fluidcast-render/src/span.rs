@@ -336,38 +336,21 @@ impl SpanSums {
                 self.touch(slot, &near, &at.ks);
                 match kernel {
                     Kernel::CubicSpline => {
-                        self.add(simd, |q, q2| cubic(simd, q, q2), &at, &near, &zs.rel, slot)
+                        self.add(simd, |q| cubic(simd, q), &at, &near, &zs.rel, slot)
                     }
-                    Kernel::Quintic => self.add(
-                        simd,
-                        |q, q2| quintic(simd, q, q2),
-                        &at,
-                        &near,
-                        &zs.rel,
-                        slot,
-                    ),
-                    Kernel::WendlandC2 => self.add(
-                        simd,
-                        |q, q2| wendland_c2(simd, q, q2),
-                        &at,
-                        &near,
-                        &zs.rel,
-                        slot,
-                    ),
-                    Kernel::WendlandC4 => self.add(
-                        simd,
-                        |q, q2| wendland_c4(simd, q, q2),
-                        &at,
-                        &near,
-                        &zs.rel,
-                        slot,
-                    ),
-                    Kernel::Poly6 => {
-                        self.add(simd, |q, q2| poly6(simd, q, q2), &at, &near, &zs.rel, slot)
+                    Kernel::Quintic => {
+                        self.add(simd, |q| quintic(simd, q), &at, &near, &zs.rel, slot)
                     }
+                    Kernel::WendlandC2 => {
+                        self.add(simd, |q| wendland_c2(simd, q), &at, &near, &zs.rel, slot)
+                    }
+                    Kernel::WendlandC4 => {
+                        self.add(simd, |q| wendland_c4(simd, q), &at, &near, &zs.rel, slot)
+                    }
+                    Kernel::Poly6 => self.add(simd, |q| poly6(simd, q), &at, &near, &zs.rel, slot),
                     Kernel::Gaussian => self.add(
                         simd,
-                        |q, _| lane_by_lane(simd, q, |q| Kernel::Gaussian.shape(q)),
+                        |q| lane_by_lane(simd, q, |q| Kernel::Gaussian.shape(q)),
                         &at,
                         &near,
                         &zs.rel,
@@ -404,17 +387,16 @@ impl SpanSums {
     fn add<S: pulp::Simd>(
         &mut self,
         simd: S,
-        shape: impl Fn(S::f32s, S::f32s) -> S::f32s,
+        shape: impl Fn(S::f32s) -> S::f32s,
         at: &Particle,
         near: &Near,
         zs: &[f32],
         slot: usize,
     ) {
-        let inv_h2 = simd.splat_f32s(at.inv_h * at.inv_h);
-        // One lane vector: num += wn·s, den += wd·s with s = shape(q = |r|/H, q²) (q² formed
-        // from r² and |d|² already divided by H²) and the weights × 1 or × 0 (shape is
-        // finite): an exact zero for the lanes off. Fused multiply-adds where the CPU has
-        // them (pulp's `mul_add_e`; a product and a sum elsewhere).
+        let inv_h = simd.splat_f32s(at.inv_h);
+        // One lane vector: num += wn·s, den += wd·s with s = shape(|r|/H) and the weights
+        // × 1 or × 0 (shape is finite): an exact zero for the lanes off. Fused multiply-adds
+        // where the CPU has them (pulp's `mul_add_e`; a product and a sum elsewhere).
         let step = |z: S::f32s,
                     t,
                     r2,
@@ -423,8 +405,8 @@ impl SpanSums {
                     num: &mut S::f32s,
                     den: &mut S::f32s| {
             let dz = simd.sub_f32s(z, t);
-            let q2 = simd.mul_add_e_f32s(simd.mul_f32s(dd, dz), dz, r2);
-            let s = shape(simd.sqrt_f32s(q2), q2);
+            let d2 = simd.mul_add_e_f32s(simd.mul_f32s(dd, dz), dz, r2);
+            let s = shape(simd.mul_f32s(simd.sqrt_f32s(d2), inv_h));
             *num = simd.mul_add_e_f32s(wn, s, *num);
             *den = simd.mul_add_e_f32s(wd, s, *den);
         };
@@ -440,8 +422,7 @@ impl SpanSums {
             let (den, _) = S::as_mut_simd_f32s(&mut self.den[i..][..LANES]);
             for c in 0..num.len().min(den.len()).min(t.len()) {
                 let w = [simd.mul_f32s(wn, mask[c]), simd.mul_f32s(wd, mask[c])];
-                let (r2, dd) = (simd.mul_f32s(r2[c], inv_h2), simd.mul_f32s(dd[c], inv_h2));
-                step(z, t[c], r2, dd, w, &mut num[c], &mut den[c]);
+                step(z, t[c], r2[c], dd[c], w, &mut num[c], &mut den[c]);
             }
         }
     }
@@ -473,8 +454,8 @@ impl SpanSums {
     }
 }
 
-// Kernel::shape on lanes in single precision, for the polynomial kernels, of q and q²; 0 at
-// q ≥ 1 (tested against Kernel::shape: `lane_kernels_equal_the_shapes`).
+// Kernel::shape on lanes in single precision, for the polynomial kernels; 0 at q ≥ 1 (tested
+// against Kernel::shape: `lane_kernels_equal_the_shapes`).
 
 #[inline(always)]
 fn support<S: pulp::Simd>(simd: S, q: S::f32s, v: S::f32s) -> S::f32s {
@@ -483,17 +464,21 @@ fn support<S: pulp::Simd>(simd: S, q: S::f32s, v: S::f32s) -> S::f32s {
 }
 
 #[inline(always)]
-fn cubic<S: pulp::Simd>(s: S, q: S::f32s, q2: S::f32s) -> S::f32s {
+fn cubic<S: pulp::Simd>(s: S, q: S::f32s) -> S::f32s {
     let c = |x| s.splat_f32s(x);
     // 6q²(q − 1) + 1 within q ≤ ½, 2(1 − q)³ beyond, 0 from q = 1 on (1 − q clamped at 0).
-    let near = s.mul_add_e_f32s(s.mul_f32s(c(6.0), q2), s.sub_f32s(q, c(1.0)), c(1.0));
+    let near = s.mul_add_e_f32s(
+        s.mul_f32s(s.mul_f32s(c(6.0), q), q),
+        s.sub_f32s(q, c(1.0)),
+        c(1.0),
+    );
     let t = s.max_f32s(s.sub_f32s(c(1.0), q), c(0.0));
     let far = s.mul_f32s(s.add_f32s(t, t), s.mul_f32s(t, t));
     s.select_f32s(s.less_than_or_equal_f32s(q, c(0.5)), near, far)
 }
 
 #[inline(always)]
-fn quintic<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
+fn quintic<S: pulp::Simd>(s: S, q: S::f32s) -> S::f32s {
     let c = |x| s.splat_f32s(x);
     let s3 = s.mul_f32s(c(3.0), q);
     let p5 = |x: S::f32s| {
@@ -507,7 +492,7 @@ fn quintic<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
 }
 
 #[inline(always)]
-fn wendland_c2<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
+fn wendland_c2<S: pulp::Simd>(s: S, q: S::f32s) -> S::f32s {
     let c = |x| s.splat_f32s(x);
     let t = s.sub_f32s(c(1.0), q);
     let t4 = s.mul_f32s(s.mul_f32s(s.mul_f32s(t, t), t), t);
@@ -519,7 +504,7 @@ fn wendland_c2<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
 }
 
 #[inline(always)]
-fn wendland_c4<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
+fn wendland_c4<S: pulp::Simd>(s: S, q: S::f32s) -> S::f32s {
     let c = |x| s.splat_f32s(x);
     let t = s.sub_f32s(c(1.0), q);
     let t2 = s.mul_f32s(t, t);
@@ -532,8 +517,8 @@ fn wendland_c4<S: pulp::Simd>(s: S, q: S::f32s, _: S::f32s) -> S::f32s {
 }
 
 #[inline(always)]
-fn poly6<S: pulp::Simd>(s: S, q: S::f32s, q2: S::f32s) -> S::f32s {
-    let d = s.sub_f32s(s.splat_f32s(1.0), q2);
+fn poly6<S: pulp::Simd>(s: S, q: S::f32s) -> S::f32s {
+    let d = s.sub_f32s(s.splat_f32s(1.0), s.mul_f32s(q, q));
     support(s, q, s.mul_f32s(s.mul_f32s(d, d), d))
 }
 
@@ -600,13 +585,12 @@ mod tests {
                 for q in self.0.chunks(n) {
                     buf[..q.len()].copy_from_slice(q);
                     let v = simd.partial_load_f32s(&buf[..n]);
-                    let v2 = simd.mul_f32s(v, v);
                     let ks = [
-                        cubic(simd, v, v2),
-                        quintic(simd, v, v2),
-                        wendland_c2(simd, v, v2),
-                        wendland_c4(simd, v, v2),
-                        poly6(simd, v, v2),
+                        cubic(simd, v),
+                        quintic(simd, v),
+                        wendland_c2(simd, v),
+                        wendland_c4(simd, v),
+                        poly6(simd, v),
                         v,
                     ];
                     let mut lanes = [[0.0f32; 16]; 6];
