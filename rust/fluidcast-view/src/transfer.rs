@@ -87,18 +87,27 @@ fn normalise<T: Copy>(pts: &mut [(f64, T)]) {
     }
 }
 
-/// The piecewise-linear value of the node table `pts` at map position `t`: the first node at
-/// or right of `t` closes the segment (a binary search: VTK's and ParaView's tables have 1024
-/// nodes); the first node's value left of it, the last's right of the last.
-fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T {
+/// Where map position `t` falls in the node table `pts`: `Ok(i)` on the segment from node
+/// `i − 1` to node `i` (the first node at or right of `t` closes it: a binary search, VTK's and
+/// ParaView's tables have 1024 nodes), `Err(value)` left of the first node or right of the last
+/// (or at NaN), with the value held there.
+fn segment<T: Copy>(pts: &[(f64, T)], t: f64) -> Result<usize, T> {
     if t <= pts[0].0 {
-        return pts[0].1;
+        return Err(pts[0].1);
     }
-    let i = pts.partition_point(|p| p.0 < t);
-    if i == pts.len() || i == 0 {
+    match pts.partition_point(|p| p.0 < t) {
         // Right of the last node (or t NaN, which no node is left of).
-        return pts[pts.len() - 1].1;
+        i if i == pts.len() || i == 0 => Err(pts[pts.len() - 1].1),
+        i => Ok(i),
     }
+}
+
+/// The piecewise-linear value of the node table `pts` at map position `t` ([`segment`]).
+fn lerp_at<T: Copy>(pts: &[(f64, T)], t: f64, mix: impl Fn(T, T, f64) -> T) -> T {
+    let i = match segment(pts, t) {
+        Ok(i) => i,
+        Err(v) => return v,
+    };
     let (a, b) = (pts[i - 1], pts[i]);
     let d = b.0 - a.0;
     let f = if d > 0.0 { (t - a.0) / d } else { 1.0 };
@@ -323,28 +332,24 @@ struct Piece<T> {
 }
 
 impl<T: Copy> Piece<T> {
-    /// The piece of `pts` that holds map position `t`, as [`lerp_at`] finds it.
+    /// The piece of `pts` that holds map position `t` ([`segment`], as [`lerp_at`] takes it).
     fn of(pts: &[(f64, T)], t: f64, sub: impl Fn(T, T) -> T) -> Piece<T> {
-        let i = pts.partition_point(|p| p.0 < t);
-        if t <= pts[0].0 || i == 0 || i == pts.len() {
-            let v = if t <= pts[0].0 {
-                pts[0].1
-            } else {
-                pts[pts.len() - 1].1
-            };
-            return Piece {
+        match segment(pts, t) {
+            Err(v) => Piece {
                 org: 0.0,
                 inv_d: 0.0,
                 a: v,
                 delta: sub(v, v),
-            };
-        }
-        let (a, b) = (pts[i - 1], pts[i]);
-        Piece {
-            org: a.0,
-            inv_d: 1.0 / (b.0 - a.0),
-            a: a.1,
-            delta: sub(b.1, a.1),
+            },
+            Ok(i) => {
+                let (a, b) = (pts[i - 1], pts[i]);
+                Piece {
+                    org: a.0,
+                    inv_d: 1.0 / (b.0 - a.0),
+                    a: a.1,
+                    delta: sub(b.1, a.1),
+                }
+            }
         }
     }
 
