@@ -332,37 +332,58 @@ impl BundleCast {
 }
 
 /// Composites each cast ray's samples of one span (those that received any weight) and
-/// clears its sums.
-fn composite(
-    cast: &[usize],
-    rays: &[Ray],
-    comps: &mut [Compositor],
-    (sums, zs): (&mut SpanSums, &SpanDepths),
-    steps: &mut Steps,
-    tf: &TfLookup,
-    params: &RenderParams,
-) {
-    // Every ray's steps first, their opacities corrected in one pass, then each ray's
-    // compositing: what Compositor::sample does sample by sample.
-    steps.clear();
-    for (slot, &r) in cast.iter().enumerate() {
-        let (ray, c) = (&rays[slot], &comps[r]);
-        steps.begin_ray();
-        // A ray done in an earlier span takes no steps.
-        let touched = if c.done { 0..0 } else { sums.touched(slot) };
-        for m in touched {
-            let Some(q) = sums.value(m, slot, params.field) else {
-                continue;
-            };
-            if !steps.push(c, tf, q, (zs.z()[m], zs.z()[m + 1]), ray.dlen) {
-                break;
+/// clears its sums. Run through [`pulp::Arch::dispatch`], which compiles it for the CPU's
+/// best instruction set.
+struct Composite<'a> {
+    cast: &'a [usize],
+    rays: &'a [Ray],
+    comps: &'a mut [Compositor],
+    sums: &'a mut SpanSums,
+    zs: &'a SpanDepths,
+    steps: &'a mut Steps,
+    tf: &'a TfLookup<'a>,
+    params: &'a RenderParams,
+}
+
+impl pulp::WithSimd for Composite<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _simd: S) {
+        let Composite {
+            cast,
+            rays,
+            comps,
+            sums,
+            zs,
+            steps,
+            tf,
+            params,
+        } = self;
+        // Every ray's steps first, then their colours and opacities, corrected in one pass,
+        // then each ray's compositing: what Compositor::sample does sample by sample.
+        steps.clear();
+        for (slot, &r) in cast.iter().enumerate() {
+            let (ray, c) = (&rays[slot], &comps[r]);
+            steps.begin_ray();
+            // A ray done in an earlier span takes no steps.
+            let touched = if c.done { 0..0 } else { sums.touched(slot) };
+            for m in touched {
+                let Some(q) = sums.at(m, slot) else {
+                    continue;
+                };
+                if !steps.push(c, q, (zs.z()[m], zs.z()[m + 1]), ray.dlen) {
+                    break;
+                }
             }
+            steps.end_ray();
+            sums.clear(slot);
         }
-        sums.clear(slot);
-    }
-    steps.correct(tf.tf);
-    for (slot, &r) in cast.iter().enumerate() {
-        steps.composite(slot, &mut comps[r], params.min_transmittance);
+        steps.shade(tf, params.field);
+        steps.correct(tf.tf);
+        for (slot, &r) in cast.iter().enumerate() {
+            steps.composite(slot, &mut comps[r], params.min_transmittance);
+        }
     }
 }
 
@@ -441,7 +462,16 @@ fn cast_bundle(
             kernel: params.kernel,
             field: params.field,
         });
-        composite(&cast, &rays, &mut comps, (sums, zs), steps, tf, params);
+        pulp::Arch::new().dispatch(Composite {
+            cast: &cast,
+            rays: &rays,
+            comps: &mut comps,
+            sums,
+            zs,
+            steps,
+            tf,
+            params,
+        });
     }
     let samples = comps.iter().map(|c| c.samples).sum();
     let pixels = cast.iter().map(|&r| {

@@ -433,15 +433,13 @@ impl SpanSums {
         lo..hi.max(lo)
     }
 
-    /// The field value at sample `k` of `slot`, or `None` when no particle contributes there.
-    #[inline]
-    pub fn value(&self, k: usize, slot: usize, field: FieldKind) -> Option<f64> {
+    /// The sums (rendered, Shepard) at sample `k` of `slot`, or `None` when no particle
+    /// contributes there; [`field_value`] makes the field value of them.
+    #[inline(always)]
+    pub fn at(&self, k: usize, slot: usize) -> Option<[f32; 2]> {
         let i = k * self.stride + slot;
         let s = self.den[i];
-        (s > 0.0).then(|| match field {
-            FieldKind::Csph => f64::from(self.num[i]) / f64::from(s),
-            FieldKind::Sph | FieldKind::Density => f64::from(self.num[i]),
-        })
+        (s > 0.0).then(|| [self.num[i], s])
     }
 
     /// Zeroes what `slot` touched, ready for the next span.
@@ -451,6 +449,16 @@ impl SpanSums {
             self.den[k * self.stride + slot] = 0.0;
         }
         self.touched[slot] = (usize::MAX, 0);
+    }
+}
+
+/// The field value of a sample's sums `[num, den]` (den > 0, see [`SpanSums::at`]): the
+/// normalised CSPH value, or the plain sum.
+#[inline(always)]
+pub(crate) fn field_value([num, den]: [f32; 2], field: FieldKind) -> f64 {
+    match field {
+        FieldKind::Csph => f64::from(num) / f64::from(den),
+        FieldKind::Sph | FieldKind::Density => f64::from(num),
     }
 }
 

@@ -417,7 +417,9 @@ impl<'a> TfLookup<'a> {
     }
 
     /// Colour and opacity per unit distance at data value `q`, as [`TransferFunction::eval`].
-    #[inline]
+    /// (Always inlined: a call per sample returned its tuple through memory, and the ray
+    /// casters' loops over samples spent 12 % of a render of a spray in the call.)
+    #[inline(always)]
     pub fn eval(&self, q: f64) -> ([f64; 3], f64) {
         // The map position as TransferFunction::normalised divides it: at a step of the
         // map (two nodes at one position) an ulp of t is the step.
