@@ -387,6 +387,28 @@ impl pulp::WithSimd for Composite<'_> {
     }
 }
 
+/// Composites each cast ray's samples of one span and clears its sums ([`Composite`]).
+fn composite(
+    cast: &[usize],
+    rays: &[Ray],
+    comps: &mut [Compositor],
+    (sums, zs): (&mut SpanSums, &SpanDepths),
+    steps: &mut Steps,
+    tf: &TfLookup,
+    params: &RenderParams,
+) {
+    pulp::Arch::new().dispatch(Composite {
+        cast,
+        rays,
+        comps,
+        sums,
+        zs,
+        steps,
+        tf,
+        params,
+    });
+}
+
 /// Ray casts bundle `b` of the plan: per span (Alg. 2: every ray of the bundle samples the
 /// same particles, at D_z positions spaced 2^level samples apart), each particle adds its
 /// kernel weights to the rays its footprint reaches, then each ray composites the samples
@@ -462,16 +484,7 @@ fn cast_bundle(
             kernel: params.kernel,
             field: params.field,
         });
-        pulp::Arch::new().dispatch(Composite {
-            cast: &cast,
-            rays: &rays,
-            comps: &mut comps,
-            sums,
-            zs,
-            steps,
-            tf,
-            params,
-        });
+        composite(&cast, &rays, &mut comps, (sums, zs), steps, tf, params);
     }
     let samples = comps.iter().map(|c| c.samples).sum();
     let pixels = cast.iter().map(|&r| {
