@@ -309,6 +309,71 @@ mod tests {
         assert!((t - (-1.0f64).exp()).abs() < 1e-15);
     }
 
+    /// A cell of two depth samples (`ds` 1 world unit, extinction κ everywhere) whose values
+    /// span the colours `a` and then `b` (grey, per sample), as the analysis leaves it for
+    /// the greedy: its full-rate bound, that bound relaxed, its per-sample bounds.
+    fn two_sample_cell(kappa: f64, a: [f64; 2], b: [f64; 2], relax_by: f64) -> CellAnalysis {
+        let vb = |[lo, hi]: [f64; 2]| ValueBound {
+            empty: false,
+            may_be_empty: false,
+            rgb_lo: [lo; 3],
+            rgb_hi: [hi; 3],
+            k_lo: kappa,
+            k_hi: kappa,
+        };
+        let samples = CellSamples {
+            steps: vec![
+                CellSamples::step(vb(a), [1.0, 1.0]),
+                CellSamples::step(vb(b), [1.0, 1.0]),
+            ],
+            gappy: false,
+        };
+        let full = samples.level(0);
+        CellAnalysis {
+            full,
+            relaxed: relax(&full, &full, relax_by),
+            samples: Some(samples),
+        }
+    }
+
+    /// A coarser level in front of a super-pixel is held to its unrelaxed bound: here the
+    /// front cell's level 1 fits relaxed (and is chosen in front of a level-adapted back) but
+    /// not unrelaxed, so in front of the super-pixel it stays at full rate. With α = 1 % a
+    /// step: the front's widths are 0.0030 at full rate and 0.0035 at level 1 (0.0005
+    /// relaxed), the back's 0.0015; E_I 0.004.
+    #[test]
+    fn levels_in_front_of_a_superpixel_are_not_relaxed() {
+        let kappa = -(0.99f64).ln();
+        let params = PlanParams::default();
+        let field = FieldParams {
+            kernel: Kernel::CubicSpline,
+            field: FieldKind::Csph,
+            min_transmittance: 0.0,
+        };
+        let front = two_sample_cell(kappa, [0.0, 0.05], [0.05, 0.3025], 1.0);
+        let back = two_sample_cell(kappa, [0.5, 0.5754], [0.5, 0.5754], 1.0);
+        let tol = 0.004;
+        // The premises: level 1 of the front fits relaxed, not unrelaxed, and the front
+        // itself is too wide for a super-pixel in front of the back.
+        let samples = front.samples.as_ref().unwrap();
+        let (l1, b) = (samples.level(1), back.full);
+        assert!(level_error(1.0, &l1, &b) < tol);
+        assert!(relax(&l1, &front.full, 1.0).over(&b).width() < tol);
+        assert!(l1.over(&b).width() >= tol);
+        assert!(front.full.over(&b).width() >= tol);
+        let cells = [front, back];
+        let (choice, plan) = choose_levels(&cells, 1, tol, &field, &params);
+        assert!(choice[0] == Choice::Level(0) && choice[1] == Choice::SuperPixel);
+        assert!(plan.width() < tol);
+        // Without super-pixels the back takes level 1, relaxed, and so does the front.
+        let no_sp = PlanParams {
+            superpixels: false,
+            ..params
+        };
+        let (choice, _) = choose_levels(&cells, 1, tol, &field, &no_sp);
+        assert!(choice[0] == Choice::Level(1) && choice[1] == Choice::Level(1));
+    }
+
     /// The probe's rule, exactly: the others are analysed where the probe's planned cast
     /// work is at least a fifth below its full-rate work, summed over its bundles; a probe
     /// without work (nothing in it) adapts.

@@ -747,7 +747,8 @@ fn merged_spans_are_aligned_runs_of_one_level_and_maximal() {
     assert!(merged > 100, "merging hardly happens: {merged}");
 }
 
-/// Strict and relaxed plans of the depth ramp's views at D_z = 8 and 16: many cells per
+/// Strict and relaxed plans of the depth ramp's views at D_z = 8 and 16, and relaxed ones
+/// without super-pixels (in front of which coarser levels are not relaxed): many cells per
 /// bundle, many of them coarsened.
 fn ramp_plans() -> Vec<(String, fluidcast_render::AdaptivePlan)> {
     let p = fluidcast_testkit::depth_ramp(20);
@@ -755,14 +756,22 @@ fn ramp_plans() -> Vec<(String, fluidcast_render::AdaptivePlan)> {
     for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
         let tf = fluidcast_testkit::depth_ramp_tf(alpha);
         let cam = camera_for(&p, azimuth, 3.0, parallel);
-        for (dz, strict) in [(8, true), (16, true), (8, false), (16, false)] {
+        let plans = [(8, true, true), (16, true, true), (8, false, true)];
+        for (dz, strict, sp) in plans
+            .into_iter()
+            .chain([(16, false, true), (16, false, false)])
+        {
             let mut prm = params(96, 72, Some(e));
             prm.grid.depth_samples = dz;
+            prm.adaptive.superpixels = sp;
             if strict {
                 prm.adaptive = prm.adaptive.strict();
             }
             let a = fluidcast_render::plan_adaptive(&p, None, &cam, &tf, &prm).unwrap();
-            out.push((format!("azimuth {azimuth}, D_z {dz}, strict {strict}"), a));
+            out.push((
+                format!("azimuth {azimuth}, D_z {dz}, strict {strict}, super-pixels {sp}"),
+                a,
+            ));
         }
     }
     out
@@ -786,6 +795,7 @@ fn bundle_summaries_count_their_cells() {
             mixed += usize::from(want[0] > 0.0 && want[1] > 0.0);
         }
     }
+    eprintln!("bundles that mix full-rate and adapted cells: {mixed}");
     assert!(
         mixed > 20,
         "only {mixed} bundles mix full-rate and adapted cells"

@@ -513,7 +513,9 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
         }
         // Greedy, back to front (Sec. 4.4, 5.3): the cheapest option (the highest level, a
         // super-pixel cheapest of all) whose composited bound stays under the budget, as the
-        // CPU's `choose_levels`; full rate where none does.
+        // CPU's `choose_levels`; full rate where none does. In front of a super-pixel a
+        // coarser level is held to its unrelaxed bound (the CPU's `choose_level`).
+        var superpixel_behind = false;
         var c = c1;
         while (c > c0) {
             c = c - 1u;
@@ -531,7 +533,10 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
             var best = relaxed(c, 0u);
             var best_key = 0u;
             for (var l = 1u; l <= lmax; l = l + 1u) {
-                let cb = relaxed(c, l);
+                var cb = relaxed(c, l);
+                if (superpixel_behind) {
+                    cb = bound_at(c, l);
+                }
                 if (width(over(fr, over(cb, back))) < P.budget) {
                     best = cb;
                     best_key = l;
@@ -546,6 +551,7 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
             }
             levels[c] = best_key;
             if (best_key == 255u) {
+                superpixel_behind = true;
                 n_sp = n_sp + 1u;
             } else {
                 level_cells[best_key] = level_cells[best_key] + 1u;
