@@ -350,39 +350,38 @@ impl pulp::WithSimd for Composite<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let Composite {
-            cast,
-            rays,
-            comps,
-            sums,
-            zs,
-            steps,
-            tf,
-            params,
-        } = self;
+        let c = self;
         // Every ray's steps first, then their colours and opacities, corrected in one pass,
         // then each ray's compositing: what Compositor::sample does sample by sample.
-        steps.clear();
-        for (slot, &r) in cast.iter().enumerate() {
-            let (ray, c) = (&rays[slot], &comps[r]);
-            steps.begin_ray();
+        c.steps.clear();
+        for (slot, &r) in c.cast.iter().enumerate() {
+            let (ray, comp) = (&c.rays[slot], &c.comps[r]);
+            c.steps.begin_ray();
             // A ray done in an earlier span takes no steps.
-            let touched = if c.done { 0..0 } else { sums.touched(slot) };
+            let touched = if comp.done {
+                0..0
+            } else {
+                c.sums.touched(slot)
+            };
             for m in touched {
-                let Some(q) = sums.at(m, slot) else {
+                let Some(q) = c.sums.at(m, slot) else {
                     continue;
                 };
-                if !steps.push(c, q, (zs.z()[m], zs.z()[m + 1]), ray.dlen) {
+                if !c
+                    .steps
+                    .push(comp, q, (c.zs.z()[m], c.zs.z()[m + 1]), ray.dlen)
+                {
                     break;
                 }
             }
-            steps.end_ray();
-            sums.clear(slot);
+            c.steps.end_ray();
+            c.sums.clear(slot);
         }
-        steps.shade(tf, params.field);
-        steps.correct(tf.tf);
-        for (slot, &r) in cast.iter().enumerate() {
-            steps.composite(slot, &mut comps[r], params.min_transmittance);
+        c.steps.shade(c.tf, c.params.field);
+        c.steps.correct(c.tf.tf);
+        for (slot, &r) in c.cast.iter().enumerate() {
+            c.steps
+                .composite(slot, &mut c.comps[r], c.params.min_transmittance);
         }
     }
 }
