@@ -450,8 +450,8 @@ fn gpu_plan_honours_opaque_geometry_as_the_cpu_does() {
 /// slowly in depth, the back half's is uniform, under a faint Viridis. At E_I 0.01 (no probe,
 /// no surface rule) the back's cells become super-pixels and the front's coarser levels fit
 /// only relaxed, which in front of a super-pixel they may not be (`choose_level`): with
-/// relaxed levels there the CPU adapts 7 of the front's cells, so a GPU plan that still
-/// relaxes them disagrees on about 2 % of the cells.
+/// relaxed levels there 9 of the front's cells adapt, so a GPU plan that still relaxes them
+/// disagrees on about 3 % of the cells (339 of 348 agree).
 fn levels_before_superpixels() -> (Particles, TransferFunction) {
     let mut p = fluidcast_testkit::depth_ramp(20);
     for (x, v) in p.positions.iter().zip(p.values.iter_mut()) {
@@ -465,11 +465,8 @@ fn levels_before_superpixels() -> (Particles, TransferFunction) {
         .with_range(0.0, 1.0)
         .unwrap();
     tf.scale_opacity(0.05);
-    let (lo, hi) = p.support_bounds();
-    let diag = (0..3)
-        .map(|k| f64::from(hi[k] - lo[k]).powi(2))
-        .sum::<f64>();
-    tf.unit_distance = diag.sqrt() / (p.len() as f64).cbrt();
+    // About what `fluidcast render` takes by default here (support-bounds diagonal / ∛N).
+    tf.unit_distance = 0.1;
     (p, tf)
 }
 
