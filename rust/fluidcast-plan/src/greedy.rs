@@ -84,14 +84,13 @@ pub(crate) fn choose_levels(
     let mut back = Bound::EMPTY;
     let mut superpixel_behind = false;
     for c in (0..n).rev() {
-        let sp_behind = superpixel_behind;
         let chosen = choose_level(
             &cells[c],
             (&front[c], &back),
             maxl,
             (tol, budget),
             params,
-            sp_behind,
+            superpixel_behind,
         );
         choice[c] = chosen.0;
         superpixel_behind |= chosen.0 == Choice::SuperPixel;

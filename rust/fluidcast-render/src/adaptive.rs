@@ -350,38 +350,37 @@ impl pulp::WithSimd for Composite<'_> {
 
     #[inline(always)]
     fn with_simd<S: pulp::Simd>(self, _simd: S) {
-        let c = self;
         // Every ray's steps first, then their colours and opacities, corrected in one pass,
         // then each ray's compositing: what Compositor::sample does sample by sample.
-        c.steps.clear();
-        for (slot, &r) in c.cast.iter().enumerate() {
-            let (ray, comp) = (&c.rays[slot], &c.comps[r]);
-            c.steps.begin_ray();
+        self.steps.clear();
+        for (slot, &r) in self.cast.iter().enumerate() {
+            let (ray, comp) = (&self.rays[slot], &self.comps[r]);
+            self.steps.begin_ray();
             // A ray done in an earlier span takes no steps.
             let touched = if comp.done {
                 0..0
             } else {
-                c.sums.touched(slot)
+                self.sums.touched(slot)
             };
             for m in touched {
-                let Some(q) = c.sums.at(m, slot) else {
+                let Some(q) = self.sums.at(m, slot) else {
                     continue;
                 };
-                if !c
+                if !self
                     .steps
-                    .push(comp, q, (c.zs.z()[m], c.zs.z()[m + 1]), ray.dlen)
+                    .push(comp, q, (self.zs.z()[m], self.zs.z()[m + 1]), ray.dlen)
                 {
                     break;
                 }
             }
-            c.steps.end_ray();
-            c.sums.clear(slot);
+            self.steps.end_ray();
+            self.sums.clear(slot);
         }
-        c.steps.shade(c.tf, c.params.field);
-        c.steps.correct(c.tf.tf);
-        for (slot, &r) in c.cast.iter().enumerate() {
-            c.steps
-                .composite(slot, &mut c.comps[r], c.params.min_transmittance);
+        self.steps.shade(self.tf, self.params.field);
+        self.steps.correct(self.tf.tf);
+        for (slot, &r) in self.cast.iter().enumerate() {
+            self.steps
+                .composite(slot, &mut self.comps[r], self.params.min_transmittance);
         }
     }
 }
