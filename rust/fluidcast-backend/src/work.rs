@@ -5,13 +5,15 @@
 //! The estimate counts kernel evaluations at full rate: a particle of support radius H at
 //! view depth z covers a disc of r = H / (pixel size at z) pixels, and each ray through it
 //! takes about 2 r × sampling scale depth samples inside its support, so it costs
-//! min(π r², pixels) × max(1, 2 r s) evaluations. The adaptive plan only ever samples less.
+//! min(π r², pixels of the disc inside the image) × max(1, 2 r s) evaluations. The adaptive
+//! plan only ever samples less.
 
 use rayon::prelude::*;
 
 use fluidcast_render::RenderParams;
 use fluidcast_sph::Particles;
-use fluidcast_view::Camera;
+use fluidcast_view::{Camera, ViewFrame};
+use glam::DVec3;
 
 use crate::BackendError;
 
@@ -29,8 +31,6 @@ pub fn estimate(
     params: &RenderParams,
 ) -> Result<f64, BackendError> {
     let frame = camera.frame(params.width, params.height)?;
-    let pixels = f64::from(params.width) * f64::from(params.height);
-    let (eye, forward) = (frame.eye.to_array(), frame.forward.to_array());
     let s = params.sampling_scale;
     Ok(particles
         .positions
@@ -38,17 +38,35 @@ pub fn estimate(
         .zip(particles.radii.par_iter())
         .map(|(p, &h)| {
             let h = f64::from(h);
-            let z: f64 = (0..3)
-                .map(|k| (f64::from(p[k]) - eye[k]) * forward[k])
-                .sum();
-            if frame.parallel.is_none() && z + h <= 0.0 {
+            let v = frame.to_view(DVec3::from(p.map(f64::from)));
+            if frame.parallel.is_none() && v.z + h <= 0.0 {
                 return 0.0; // behind the eye
             }
             // A support around the eye covers the screen: its depth is taken as H.
-            let r = h / frame.pixel_size_at(z.max(h));
-            (std::f64::consts::PI * r * r).min(pixels) * (2.0 * r * s).max(1.0)
+            let r = h / frame.pixel_size_at(v.z.max(h));
+            on_screen(&frame, v, h, r) * (2.0 * r * s).max(1.0)
         })
         .sum())
+}
+
+/// The pixels of a particle's projected disc (radius `r` pixels; view-space centre `v`,
+/// support radius `h`) inside the image: π r², clipped to the image where the disc's box, taken
+/// half as wide again (the projection of a support off the axis is stretched), leaves it, 0
+/// where that box misses the image. A support reaching to within 2 H of the eye is counted
+/// whole (up to the image's pixels): its projection is far wider than `r`. A close-up of part
+/// of a large data set counts the particles it shows, not those the camera looks past (a
+/// 227k-particle dam break zoomed 4 times at 1024 × 768 was refused for 5.5·10¹⁰ evaluations).
+fn on_screen(frame: &ViewFrame, v: DVec3, h: f64, r: f64) -> f64 {
+    let (w, ht) = (f64::from(frame.width), f64::from(frame.height));
+    let disc = std::f64::consts::PI * r * r;
+    let near_eye = frame.parallel.is_none() && v.z < 2.0 * h;
+    match frame.project_view(v) {
+        Some((x, y)) if !near_eye => {
+            let inside = |c: f64, n: f64| ((c + 1.5 * r).min(n) - (c - 1.5 * r).max(0.0)).max(0.0);
+            disc.min(inside(x, w) * inside(y, ht))
+        }
+        _ => disc.min(w * ht),
+    }
 }
 
 /// What adaptive sampling's own work costs per particle, in kernel evaluations of the full-rate
@@ -175,6 +193,36 @@ mod tests {
         let e = check(&p, &cam, &params, 1e5).unwrap_err().to_string();
         assert!(e.contains("needs about 7.9e5 kernel evaluations"), "{e}");
         assert!(check(&p, &cam, &params, 1e7).is_ok());
+    }
+
+    /// Only the part of a footprint inside the image counts: a close-up does not pay for the
+    /// particles beside it.
+    #[test]
+    fn particles_beside_the_image_cost_nothing() {
+        let params = RenderParams {
+            width: 100,
+            height: 100,
+            ..Default::default()
+        };
+        // 0.2 units a pixel at depth 10: H = 1 is a disc of 5 px radius, 10 samples deep.
+        let (mut p, cam) = single(1.0);
+        let whole = std::f64::consts::PI * 25.0 * 10.0;
+        let at = |p: &Particles| estimate(p, &cam, &params).unwrap();
+        assert!((at(&p) / whole - 1.0).abs() < 1e-6);
+        // Centred 60 px right of the image's centre (10 px beyond its edge): its box, 7.5 px
+        // to each side, misses the image.
+        p.positions[0] = [12.0, 0.0, 0.0];
+        assert_eq!(at(&p), 0.0);
+        // Centred 2.5 px beyond the edge: 5 of the box's 15 columns are inside.
+        p.positions[0] = [10.5, 0.0, 0.0];
+        let got = at(&p);
+        assert!((got / (5.0 * 15.0 * 10.0) - 1.0).abs() < 1e-6, "{got}");
+        // Centred on the edge: half the box (7.5 × 15 px) is inside, more than half the disc.
+        p.positions[0] = [10.0, 0.0, 0.0];
+        assert!((at(&p) / whole - 1.0).abs() < 1e-6);
+        // Close to the eye (depth 1.5, support 1) it covers the image however far aside.
+        p.positions[0] = [3.0, 0.0, 8.5];
+        assert!(at(&p) > 0.0);
     }
 
     /// The break-even: the share of the cast's work per particle that a plan can be counted

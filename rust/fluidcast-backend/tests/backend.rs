@@ -376,3 +376,55 @@ fn tiles_interpolate_only_their_own_pixels() {
         "{got} pixels interpolated in tiles, {one} in one render"
     );
 }
+
+/// A close-up is charged for the particles it shows: zooming k times into a sheet wider than
+/// the view makes each particle in view k³ times the work (k² the pixels, k the depth samples)
+/// and shows a k²-th of them, so the estimate grows about k-fold, not k³-fold as it did when
+/// the particles beside the image counted (a 227k-particle dam break zoomed 4 times at
+/// 1024 × 768 was refused for 5.5·10¹⁰ evaluations). Under a limit that the whole view's
+/// work times 8 sets, the close-up renders.
+#[test]
+fn a_close_up_is_charged_for_what_it_shows() {
+    let p = fluidcast_testkit::layers(1, 1.0, 0.02);
+    let tf = TransferFunction::preset("viridis")
+        .unwrap()
+        .with_range(-0.5, 1.0)
+        .unwrap();
+    let whole = Camera {
+        position: [0.0, 0.0, 2.0],
+        focal_point: [0.0; 3],
+        view_up: [0.0, 1.0, 0.0],
+        view_angle: 30.0,
+        ..Default::default()
+    };
+    let mut close = whole.clone();
+    close.zoom(4.0);
+    let prm = RenderParams {
+        width: 64,
+        height: 48,
+        ..Default::default()
+    };
+    let work = |c: &Camera| fluidcast_backend::work::estimate(&p, c, &prm).unwrap();
+    let ratio = work(&close) / work(&whole);
+    assert!(
+        (2.0..8.0).contains(&ratio),
+        "zoom 4 costs {ratio} times the whole view"
+    );
+    let r = Renderer::open(Backend::Cpu, None).unwrap();
+    let mut scene = fluidcast_backend::Scene::new(p.clone(), close, tf);
+    let plan = fluidcast_backend::RenderPlan {
+        params: prm.clone(),
+        mode: Some(fluidcast_backend::Mode::Adaptive),
+        work_limit: Some(8.0 * work(&whole)),
+        ..Default::default()
+    };
+    let drawn = r.render(&mut scene, &plan).unwrap();
+    assert!(drawn.stats.samples > 0);
+    // The same limit still refuses what exceeds it.
+    let tight = fluidcast_backend::RenderPlan {
+        work_limit: Some(0.5 * work(&scene.camera)),
+        ..plan
+    };
+    let e = r.render(&mut scene, &tight).unwrap_err();
+    assert!(e.to_string().contains("kernel evaluations"), "{e}");
+}
