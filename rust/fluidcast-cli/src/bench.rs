@@ -63,6 +63,10 @@ pub struct BenchArgs {
     /// Write the results as JSON here.
     #[arg(long)]
     pub(crate) json: Option<PathBuf>,
+    /// As `fluidcast render --max-work`: the most kernel evaluations a view may be estimated
+    /// to take (default 5e10); `off` benchmarks heavier views (a close-up at 1920 × 1080).
+    #[arg(long, allow_hyphen_values = true, value_parser = crate::render::parse_max_work)]
+    pub(crate) max_work: Option<f64>,
     /// Also measure the machine's kernel-evaluation limit (a plain, vectorised f32 loop of
     /// cubic-spline evaluations on every core) and print each row's time as a multiple of the
     /// time its views' full-rate work takes at that limit.
@@ -224,12 +228,18 @@ struct Measured {
 }
 
 /// The plan of one bench render: `base` at tolerance `tol`, in `mode`.
-fn plan(base: &fluidcast_backend::RenderParams, mode: Mode, tol: Option<f64>) -> RenderPlan {
+fn plan(
+    a: &BenchArgs,
+    base: &fluidcast_backend::RenderParams,
+    mode: Mode,
+    tol: Option<f64>,
+) -> RenderPlan {
     let mut params = base.clone();
     params.adaptive.tolerance = tol;
     RenderPlan {
         params,
         mode: Some(mode),
+        work_limit: a.max_work.filter(|&w| w > 0.0),
         ..Default::default()
     }
 }
@@ -361,7 +371,7 @@ fn measure_view(
         (a.perspective_grid, Mode::PerspectiveGrid { cell }),
     ];
     for (_, mode) in baselines.into_iter().filter(|b| b.0) {
-        let r = cpu.render(scene, &plan(&s.base, mode, s.base.adaptive.tolerance))?;
+        let r = cpu.render(scene, &plan(a, &s.base, mode, s.base.adaptive.tolerance))?;
         match mode {
             Mode::Reference => &mut m.reference,
             Mode::ObjectSpace => &mut m.object,
@@ -372,7 +382,7 @@ fn measure_view(
     }
     let mut off_img: Option<Image> = None;
     for (t, tol) in m.tols.clone().iter().enumerate() {
-        let p = plan(&s.base, Mode::Adaptive, *tol);
+        let p = plan(a, &s.base, Mode::Adaptive, *tol);
         let r = cpu.render(scene, &p)?;
         m.runs[t].add(&r.stats);
         if let Some(g) = gpu {

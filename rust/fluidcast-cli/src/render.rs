@@ -109,7 +109,7 @@ pub struct SplitArgs {
     pub tiles: Option<u32>,
 }
 
-fn parse_max_work(s: &str) -> Result<f64, String> {
+pub(crate) fn parse_max_work(s: &str) -> Result<f64, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(f64::INFINITY);
     }
