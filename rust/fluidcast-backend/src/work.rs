@@ -153,13 +153,18 @@ mod tests {
         (p, camera)
     }
 
-    #[test]
-    fn a_disc_of_pixels_times_the_samples_through_it() {
-        let params = RenderParams {
+    /// A 100 × 100 image.
+    fn square() -> RenderParams {
+        RenderParams {
             width: 100,
             height: 100,
             ..Default::default()
-        };
+        }
+    }
+
+    #[test]
+    fn a_disc_of_pixels_times_the_samples_through_it() {
+        let params = square();
         // At depth 10 with 90°, the screen spans 20 units: 0.2 units a pixel; H = 1 is 5 px.
         let (p, cam) = single(1.0);
         let r: f64 = 5.0;
@@ -199,11 +204,7 @@ mod tests {
     /// particles beside it.
     #[test]
     fn particles_beside_the_image_cost_nothing() {
-        let params = RenderParams {
-            width: 100,
-            height: 100,
-            ..Default::default()
-        };
+        let params = square();
         // 0.2 units a pixel at depth 10: H = 1 is a disc of 5 px radius, 10 samples deep.
         let (mut p, cam) = single(1.0);
         let whole = std::f64::consts::PI * 25.0 * 10.0;
