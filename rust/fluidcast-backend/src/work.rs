@@ -224,6 +224,10 @@ mod tests {
         // Close to the eye (depth 1.5, support 1) it covers the image however far aside.
         p.positions[0] = [3.0, 0.0, 8.5];
         assert!(at(&p) > 0.0);
+        // Not within 2 H of the eye (support 0.5 at depth 1.5, a 17 px disc 100 px from the
+        // image's centre), it is clipped as any other: nothing of it is inside.
+        p.radii[0] = 0.5;
+        assert_eq!(at(&p), 0.0);
     }
 
     /// The break-even: the share of the cast's work per particle that a plan can be counted
