@@ -239,7 +239,7 @@ fn plan(
     RenderPlan {
         params,
         mode: Some(mode),
-        work_limit: a.max_work.filter(|&w| w > 0.0),
+        work_limit: crate::render::work_limit(a.max_work),
         ..Default::default()
     }
 }

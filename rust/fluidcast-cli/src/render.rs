@@ -109,6 +109,12 @@ pub struct SplitArgs {
     pub tiles: Option<u32>,
 }
 
+/// The render plan's work limit from `--max-work`: 0, as the mapper's WorkLimit, and no
+/// option mean the default.
+pub(crate) fn work_limit(max_work: Option<f64>) -> Option<f64> {
+    max_work.filter(|&w| w > 0.0)
+}
+
 pub(crate) fn parse_max_work(s: &str) -> Result<f64, String> {
     if s.eq_ignore_ascii_case("off") {
         return Ok(f64::INFINITY);
@@ -613,8 +619,7 @@ fn base_plan(a: &RenderArgs) -> Result<(RenderPlan, Renderer)> {
         tiles: Tiles::default(),
         lod: a.lod,
         march,
-        // 0, as the mapper's WorkLimit: the default.
-        work_limit: a.max_work.filter(|&w| w > 0.0),
+        work_limit: work_limit(a.max_work),
     };
     // The library's refusals of option combinations, before reading (the tiles the options
     // ask for stand in for the budget each frame computes).

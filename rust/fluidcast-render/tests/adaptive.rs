@@ -756,11 +756,14 @@ fn ramp_plans() -> Vec<(String, fluidcast_render::AdaptivePlan)> {
     for (alpha, e, azimuth, parallel) in fluidcast_testkit::DEPTH_RAMP_CASES {
         let tf = fluidcast_testkit::depth_ramp_tf(alpha);
         let cam = camera_for(&p, azimuth, 3.0, parallel);
-        let plans = [(8, true, true), (16, true, true), (8, false, true)];
-        for (dz, strict, sp) in plans
-            .into_iter()
-            .chain([(16, false, true), (16, false, false)])
-        {
+        let plans = [
+            (8, true, true),
+            (16, true, true),
+            (8, false, true),
+            (16, false, true),
+            (16, false, false),
+        ];
+        for (dz, strict, sp) in plans {
             let mut prm = params(96, 72, Some(e));
             prm.grid.depth_samples = dz;
             prm.adaptive.superpixels = sp;

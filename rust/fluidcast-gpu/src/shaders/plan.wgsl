@@ -533,9 +533,11 @@ fn greedy(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec
             var best = relaxed(c, 0u);
             var best_key = 0u;
             for (var l = 1u; l <= lmax; l = l + 1u) {
-                var cb = relaxed(c, l);
+                var cb: Bound;
                 if (superpixel_behind) {
                     cb = bound_at(c, l);
+                } else {
+                    cb = relaxed(c, l);
                 }
                 if (width(over(fr, over(cb, back))) < P.budget) {
                     best = cb;
