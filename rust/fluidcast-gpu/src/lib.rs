@@ -141,8 +141,10 @@ struct Pipelines {
 }
 
 impl Pipelines {
-    /// Compiles the shaders: the Rust-owned constants and common.wgsl, then each stage's.
-    fn new(device: &wgpu::Device) -> Result<Pipelines, GpuError> {
+    /// Compiles the shaders: the Rust-owned constants and common.wgsl, then each stage's; the
+    /// scans and the sort's ranks with subgroup operations where `subgroups` (the device has
+    /// the feature), else in workgroup memory alone.
+    fn new(device: &wgpu::Device, subgroups: bool) -> Result<Pipelines, GpuError> {
         let common = format!(
             "{}{}",
             layout::wgsl_prelude(),
@@ -164,8 +166,14 @@ impl Pipelines {
             include_str!("shaders/surface.wgsl")
         );
         let surface = staged("surface", &surface_src)?;
-        let scan = Shader::new(device, "scan", include_str!("shaders/scan.wgsl"))?;
-        let sort = Shader::new(device, "sort", include_str!("shaders/sort.wgsl"))?;
+        let prefix = match subgroups {
+            true => include_str!("shaders/prefix_subgroups.wgsl"),
+            false => include_str!("shaders/prefix_barriers.wgsl"),
+        };
+        let prefixed =
+            |name: &str, src: &str| Shader::new(device, name, &format!("{prefix}\n{src}"));
+        let scan = prefixed("scan", include_str!("shaders/scan.wgsl"))?;
+        let sort = prefixed("sort", include_str!("shaders/sort.wgsl"))?;
         let readback = Shader::new(device, "readback", include_str!("shaders/readback.wgsl"))?;
         Ok(Pipelines {
             view: grid.pipe(device, "view"),
@@ -194,6 +202,8 @@ pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipes: Pipelines,
+    /// The scans and the sort use subgroup operations (`prefix_subgroups.wgsl`).
+    subgroups: bool,
     /// Adapter name and backend, for messages ("llvmpipe (Vulkan)").
     pub adapter: String,
     /// GPU-side durations from timestamp queries, where the adapter supports them.
@@ -214,6 +224,26 @@ pub struct Gpu {
     loop_limit: u32,
     /// A CPU adapter (Mesa's lavapipe or llvmpipe).
     software: bool,
+}
+
+/// Whether the scans and the sort may use subgroup operations on `adapter`: it has them, with
+/// subgroups of 4 to 256 invocations (prefix_subgroups.wgsl), and `FLUIDCAST_GPU_SUBGROUPS`
+/// is not `0`.
+fn subgroups_usable(adapter: &wgpu::Adapter) -> bool {
+    let info = adapter.get_info();
+    let sizes = info.subgroup_min_size >= 4 && info.subgroup_max_size <= 256;
+    let off = std::env::var("FLUIDCAST_GPU_SUBGROUPS").is_ok_and(|v| v.trim() == "0");
+    adapter.features().contains(wgpu::Features::SUBGROUP) && sizes && !off
+}
+
+/// The pipelines, with a compilation error reported as one (not a panic in wgpu's handler).
+fn compile(device: &wgpu::Device, subgroups: bool) -> Result<Pipelines, GpuError> {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let pipes = Pipelines::new(device, subgroups)?;
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(GpuError::Device(format!("compiling the shaders: {e}")));
+    }
+    Ok(pipes)
 }
 
 /// Most control points per transfer function table (colour, opacity) the shaders search
@@ -240,28 +270,32 @@ impl Gpu {
         Gpu::open(&AdapterChoice::from_env().unwrap_or(AdapterChoice::Any))
     }
 
-    /// Opens the adapter `choice` picks and compiles the shaders.
+    /// Opens the adapter `choice` picks and compiles the shaders. Where the adapter has
+    /// subgroup operations (and `FLUIDCAST_GPU_SUBGROUPS` is not `0`), the scans and the sort
+    /// use them once a scan and a sort on the device agree with the host's
+    /// ([`Gpu::check_prefix_sums`]); otherwise, or when they do not, they run in workgroup
+    /// memory alone.
     pub fn open(choice: &AdapterChoice) -> Result<Gpu, GpuError> {
         let adapter = adapter::pick(choice)?;
         let info = adapter.get_info();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let subgroups = subgroups_usable(&adapter);
         let limits = adapter.limits();
+        let mut required_features = wgpu::Features::empty();
+        required_features.set(wgpu::Features::TIMESTAMP_QUERY, timestamps);
+        required_features.set(wgpu::Features::SUBGROUP, subgroups);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("fluidcast"),
             required_limits: limits.clone(),
-            required_features: if timestamps {
-                wgpu::Features::TIMESTAMP_QUERY
-            } else {
-                wgpu::Features::empty()
-            },
+            required_features,
             ..Default::default()
         }))
         .map_err(|e| GpuError::Device(e.to_string()))?;
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let pipes = Pipelines::new(&device)?;
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(GpuError::Device(format!("compiling the shaders: {e}")));
-        }
+        // A driver or shader compiler that fails the subgroup variant gets the other.
+        let (pipes, subgroups) = match subgroups.then(|| compile(&device, true)) {
+            Some(Ok(p)) => (p, true),
+            _ => (compile(&device, false)?, false),
+        };
         let timestamps = timestamps.then(|| {
             device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("stage timestamps"),
@@ -269,10 +303,11 @@ impl Gpu {
                 count: QUERIES,
             })
         });
-        Ok(Gpu {
+        let gpu = Gpu {
             device,
             queue,
             pipes,
+            subgroups,
             adapter: adapter::name(&adapter),
             timestamps,
             buffers: Default::default(),
@@ -288,7 +323,26 @@ impl Gpu {
                 u32::MAX
             },
             software: info.device_type == wgpu::DeviceType::Cpu,
-        })
+        };
+        match gpu.subgroups && !gpu.check_prefix_sums()? {
+            true => gpu.without_subgroups(),
+            false => Ok(gpu),
+        }
+    }
+
+    /// This GPU with the scans and the sort in workgroup memory alone, not with subgroup
+    /// operations (the same results: both are exact integer sums).
+    pub fn without_subgroups(mut self) -> Result<Gpu, GpuError> {
+        if self.subgroups {
+            self.pipes = compile(&self.device, false)?;
+            self.subgroups = false;
+        }
+        Ok(self)
+    }
+
+    /// True when the scans and the sort use subgroup operations.
+    pub fn uses_subgroups(&self) -> bool {
+        self.subgroups
     }
 
     /// True on a software driver (a CPU adapter: Mesa's lavapipe or llvmpipe), whose loop limit

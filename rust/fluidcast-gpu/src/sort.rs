@@ -72,3 +72,48 @@ impl Gpu {
         Ok(a)
     }
 }
+
+/// Values the device's scans and sort are checked on when the device is opened: several
+/// blocks and a partial one, pseudo-random.
+const CHECKED: u32 = 5 * 256 + 77;
+
+impl Gpu {
+    /// Runs a scan and a sort of [`CHECKED`] pseudo-random values on the device and compares
+    /// them with the host's: false where they differ (prefix_subgroups.wgsl assumes full
+    /// subgroups, which a driver need not give).
+    pub(crate) fn check_prefix_sums(&self) -> Result<bool, GpuError> {
+        let mix = |i: u32| i.wrapping_mul(2_654_435_761).rotate_right(7);
+        let values: Vec<u32> = (0..CHECKED).map(|i| mix(i) % 1000).collect();
+        let keys: Vec<u32> = (0..CHECKED).map(|i| mix(i + CHECKED) & 0xFFFF).collect();
+        let order: Vec<u32> = (0..CHECKED).collect();
+        let data = self.upload("prefix check values", &values);
+        let (k, v) = (
+            self.upload("prefix check keys", &keys),
+            self.upload("prefix check order", &order),
+        );
+        let mut enc = self.encoder();
+        let sorted = {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            self.scan(&mut pass, &data, CHECKED, 0)?;
+            self.sort(&mut pass, &k, &v, CHECKED, 16)?
+        };
+        self.submit(enc);
+        let bytes = 4 * u64::from(CHECKED);
+        let got = self.fetch(&[(&data, bytes), (&sorted.0, bytes), (&sorted.1, bytes)])?;
+        let (scanned, keys_out, order_out) = (
+            crate::cast::<u32>(&got[0]),
+            crate::cast::<u32>(&got[1]),
+            crate::cast::<u32>(&got[2]),
+        );
+        let mut want_scan = Vec::with_capacity(values.len());
+        let mut sum = 0u32;
+        for &x in &values {
+            want_scan.push(sum);
+            sum += x;
+        }
+        let mut want_order = order;
+        want_order.sort_by_key(|&i| keys[i as usize]);
+        let want_keys: Vec<u32> = want_order.iter().map(|&i| keys[i as usize]).collect();
+        Ok(scanned == want_scan && keys_out == want_keys && order_out == want_order)
+    }
+}

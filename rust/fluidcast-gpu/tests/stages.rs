@@ -532,3 +532,34 @@ fn gpu_buffers_are_reused_across_frames() {
     // Similar frames fit the buffers of the first (grown by half when made).
     assert_eq!(held[1], held[3], "buffers were reallocated: {held:?}");
 }
+
+/// The scans and the radix sort with subgroup operations (where the adapter has them:
+/// lavapipe does, so CI runs this variant) give the same grid, plan and image as in workgroup
+/// memory alone, bit for bit: both are exact integer sums.
+#[test]
+fn subgroup_and_workgroup_prefix_sums_build_the_same_grid() {
+    let Some(g) = gpu() else { return };
+    if g.is_software() {
+        assert!(
+            g.uses_subgroups(),
+            "lavapipe has subgroup operations: {}",
+            g.adapter
+        );
+    }
+    let plain = gpu().unwrap().without_subgroups().unwrap();
+    assert!(!plain.uses_subgroups());
+    for s in scenes() {
+        for (mode, adaptive) in modes() {
+            let prm = params(s.size, adaptive);
+            let (a, da) = g.render_with_dump(&s.p, None, &s.cam, &s.tf, &prm).unwrap();
+            let (b, db) = plain
+                .render_with_dump(&s.p, None, &s.cam, &s.tf, &prm)
+                .unwrap();
+            assert!(!da.refs.is_empty(), "{} {mode}: an empty grid", s.name);
+            assert_eq!(da.cells, db.cells, "{} {mode}", s.name);
+            assert_eq!(da.refs, db.refs, "{} {mode}", s.name);
+            assert_eq!(da.levels, db.levels, "{} {mode}", s.name);
+            assert_eq!(a.image.rgba, b.image.rgba, "{} {mode}", s.name);
+        }
+    }
+}

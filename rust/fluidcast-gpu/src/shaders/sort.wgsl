@@ -2,7 +2,8 @@
 // `histogram` counts each block's digits into hist[digit * blocks + block], the Rust side scans
 // hist (so digit-major order gives every block its output offset per digit), and `scatter`
 // ranks each element among the block's equal digits before it (a prefix sum of one-hot digit
-// counters packed 4 × 8 bits per u32) and writes it to its place.
+// counters packed 4 × 8 bits per u32: `prefix_v4`, prepended as in scan.wgsl) and writes it to
+// its place.
 
 struct SortParams {
     n: u32,
@@ -19,7 +20,6 @@ struct SortParams {
 @group(0) @binding(5) var<storage, read_write> hist: array<u32>;
 
 var<workgroup> wcount: array<atomic<u32>, 16>;
-var<workgroup> ranks: array<vec4<u32>, 256>;
 
 @compute @workgroup_size(256)
 fn histogram(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
@@ -41,9 +41,9 @@ fn histogram(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: 
 
 @compute @workgroup_size(256)
 fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: vec3<u32>,
-           @builtin(local_invocation_index) li: u32) {
+           lane: Lane) {
     let g = wg.y * nw.x + wg.x;
-    let i = g * 256u + li;
+    let i = g * 256u + element(lane);
     let valid = i < R.n;
     var key = 0u;
     var d = 0u;
@@ -53,20 +53,9 @@ fn scatter(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw: ve
         d = (key >> R.shift) & 15u;
         own[d / 4u] = 1u << (8u * (d % 4u));
     }
-    ranks[li] = own;
-    workgroupBarrier();
-    for (var o = 1u; o < 256u; o = o * 2u) {
-        var t = vec4<u32>(0u);
-        if (li >= o) {
-            t = ranks[li - o];
-        }
-        workgroupBarrier();
-        ranks[li] = ranks[li] + t;
-        workgroupBarrier();
-    }
+    // Exclusive count (< 256, so it fits its byte; u32 arithmetic is exact mod 2^32).
+    let ex = prefix_v4(own, lane);
     if (valid) {
-        // Exclusive count (< 256, so it fits its byte; u32 arithmetic is exact mod 2^32).
-        let ex = ranks[li] - own;
         let rank = (ex[d / 4u] >> (8u * (d % 4u))) & 255u;
         let dst = hist[d * R.blocks + g] + rank;
         keys_out[dst] = key;
