@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use fluidcast_grid::Cell;
 use fluidcast_image::Image;
-use fluidcast_plan::{PlanError, PlanStats};
+use fluidcast_plan::{BundleSummary, PlanError, PlanStats};
 use fluidcast_render::{
     interpolate, ms, validate, ImageOutput, RenderError, RenderParams, RenderStats, Rendered,
 };
@@ -15,7 +15,7 @@ use fluidcast_view::{Camera, TransferFunction, ViewFrame};
 use crate::grid::Grid;
 use crate::layout::{frame_uniform, FrameUniform, GpuCell};
 use crate::pass::Timer;
-use crate::plan::Plan;
+use crate::plan::{plan_read, Plan};
 use crate::{cast, push_stage, Gpu, GpuError};
 
 /// The GPU's grid and plan of one frame, read back to compare with the CPU's
@@ -146,46 +146,23 @@ impl Gpu {
         let t1 = Instant::now();
         let plan = self.plan(&mut ctx, &grid, particles, surface, tf, params)?;
         push_stage(&mut ctx.stats, "adapt", ms(t1));
-        // The plan's statistics and summaries (which bundles to refine), read back before
-        // the ray caster runs.
-        let summaries = self.plan_results(&mut ctx, &plan, grid.cells_n, params)?;
-        let t2 = Instant::now();
         let refine = match params.adaptive.tolerance {
-            Some(e) if interpolate::applies(particles, &frame, params) => {
-                // The passes give each pixel a depth range in the depth-limit buffer, which
-                // the shader reads with bit 0 set (the plan, which reads it too, has run).
-                ctx.u.has_limit |= 1;
-                ctx.update(self);
-                Some(e)
-            }
+            Some(e) if interpolate::applies(particles, &frame, params) => Some(e),
             _ => None,
         };
-        let casting = grid.casting(&plan, &ctx.frame_buf, &ctx.guard);
-        let (timer, stats) = (&mut ctx.timer, &mut ctx.stats);
-        match refine {
-            Some(e) => {
-                let mut samples = 0;
-                // A pass reads back a whole image: its pixels go into the refined one, which
-                // decides on their full-precision colour and depth.
-                let mut cast = |p: &RenderParams, into: &mut Image| {
-                    let mut pass = Image::new(p.width, p.height);
-                    let p = &RenderParams {
-                        output: ImageOutput::FULL,
-                        ..p.clone()
-                    };
-                    self.raycast(&casting, p, timer, stats, &mut pass)?;
-                    interpolate::keep_cast_pixels(p, &pass, into);
-                    samples += stats.samples;
-                    Ok::<_, GpuError>(())
-                };
-                let bundles = interpolate::refined_bundles(&summaries);
-                let counts =
-                    interpolate::cast_refined(params, &frame, e, &bundles, &mut image, &mut cast)?;
-                (stats.samples, stats.interpolated) = (samples, counts.interpolated);
-                stats.stages.extend(counts.stages);
+        let t2 = Instant::now();
+        let summaries = match refine {
+            Some(e) => self.refine(&mut ctx, (&grid, &plan), (&frame, params, e), &mut image)?,
+            None => {
+                // One round trip after the plan and the ray caster: the image, with the plan's
+                // statistics and summaries and the timestamps.
+                let casting = grid.casting(&plan, &ctx.frame_buf, &ctx.guard);
+                let (timer, stats) = (&mut ctx.timer, &mut ctx.stats);
+                let also = plan.results(ctx.bundles);
+                let got = self.raycast(&casting, params, (timer, stats), &mut image, &also)?;
+                plan_read(&mut ctx.stats, &got, grid.cells_n, params)
             }
-            None => self.raycast(&casting, params, timer, stats, &mut image)?,
-        }
+        };
         push_stage(&mut ctx.stats, "raycast", ms(t2));
         let (d, w, h) = (params.grid.bundle, params.width, params.height);
         image.aovs = fluidcast_render::bundle_aovs(&summaries, d, w, h);
@@ -196,9 +173,47 @@ impl Gpu {
         Ok((self.finish(ctx, image)?, dumped))
     }
 
+    /// The relaxed mode's image-space refinement ([`interpolate::cast_refined`]): the plan's
+    /// summaries (which bundles to refine) read back first, then each pass cast on the GPU and
+    /// read back at full precision, from which the host decides. Returns the summaries.
+    fn refine(
+        &self,
+        ctx: &mut FrameCtx,
+        (grid, plan): (&Grid, &Plan),
+        (frame, params, e): (&ViewFrame, &RenderParams, f64),
+        image: &mut Image,
+    ) -> Result<Vec<BundleSummary>, GpuError> {
+        let summaries = self.plan_results(ctx, plan, grid.cells_n, params)?;
+        // The passes give each pixel a depth range in the depth-limit buffer, which the
+        // shader reads with bit 0 set (the plan, which reads it too, has run).
+        ctx.u.has_limit |= 1;
+        ctx.update(self);
+        let casting = grid.casting(plan, &ctx.frame_buf, &ctx.guard);
+        let (timer, stats) = (&mut ctx.timer, &mut ctx.stats);
+        let mut samples = 0;
+        // A pass reads back a whole image: its pixels go into the refined one, which decides
+        // on their full-precision colour and depth.
+        let mut cast = |p: &RenderParams, into: &mut Image| {
+            let mut pass = Image::new(p.width, p.height);
+            let p = &RenderParams {
+                output: ImageOutput::FULL,
+                ..p.clone()
+            };
+            self.raycast(&casting, p, (&mut *timer, &mut *stats), &mut pass, &[])?;
+            interpolate::keep_cast_pixels(p, &pass, into);
+            samples += stats.samples;
+            Ok::<_, GpuError>(())
+        };
+        let bundles = interpolate::refined_bundles(&summaries);
+        let counts = interpolate::cast_refined(params, frame, e, &bundles, image, &mut cast)?;
+        (stats.samples, stats.interpolated) = (samples, counts.interpolated);
+        stats.stages.extend(counts.stages);
+        Ok(summaries)
+    }
+
     /// Timestamps, memory and the total time into the statistics.
     pub(crate) fn finish(&self, mut ctx: FrameCtx, image: Image) -> Result<Rendered, GpuError> {
-        self.finish_timers(&ctx.timer, &mut ctx.stats)?;
+        self.finish_timers(&mut ctx.timer, &mut ctx.stats)?;
         ctx.stats.gpu_memory_bytes = self.memory_bytes();
         ctx.stats.transfers = self.take_traffic();
         push_stage(&mut ctx.stats, "total", ms(ctx.t0));

@@ -239,14 +239,28 @@ impl Gpu {
             })
     }
 
-    /// Reads the timestamp queries of the frame into `gpu_*` stages (milliseconds).
+    /// Reads the timestamp queries of the frame into `gpu_*` stages (milliseconds), in a
+    /// round trip of their own (a frame whose image came back after its last timed pass has
+    /// read them with it: [`Gpu::resolve_timers`]).
     pub(crate) fn finish_timers(
         &self,
-        timer: &Timer,
+        timer: &mut Timer,
         stats: &mut RenderStats,
     ) -> Result<(), GpuError> {
-        let (Some(q), false) = (timer.queries, timer.names.is_empty()) else {
+        let Some((resolved, bytes)) = self.resolve_timers(timer) else {
             return Ok(());
+        };
+        let got = self.fetch(&[(&resolved, bytes)])?;
+        self.read_timers(timer, &got[0], stats);
+        Ok(())
+    }
+
+    /// Resolves the timestamp queries of the passes recorded so far into a buffer (submitted),
+    /// to be read back with what the frame reads next: the buffer and its bytes; `None`
+    /// without queries or passes.
+    pub(crate) fn resolve_timers(&self, timer: &Timer) -> Option<(wgpu::Buffer, u64)> {
+        let (Some(q), false) = (timer.queries, timer.names.is_empty()) else {
+            return None;
         };
         let count = 2 * timer.names.len() as u32;
         let resolve = self.buffer(
@@ -258,12 +272,18 @@ impl Gpu {
         let mut enc = self.encoder();
         enc.resolve_query_set(q, 0..count, &resolve, 0);
         self.submit(enc);
-        let t: Vec<u64> = cast(&self.fetch(&[(&resolve, 8 * count as u64)])?[0]);
+        Some((resolve, 8 * u64::from(count)))
+    }
+
+    /// The `gpu_*` stages (milliseconds) from the queries [`Gpu::resolve_timers`] resolved
+    /// (`bytes`, read back); the timer's queries are then free for the frame's next passes.
+    pub(crate) fn read_timers(&self, timer: &mut Timer, bytes: &[u8], stats: &mut RenderStats) {
+        let t: Vec<u64> = cast(bytes);
         let period = self.queue.get_timestamp_period() as f64;
         for (k, name) in timer.names.iter().enumerate() {
             let ns = t[2 * k + 1].saturating_sub(t[2 * k]) as f64 * period;
             push_stage(stats, name, ns * 1e-6);
         }
-        Ok(())
+        timer.names.clear();
     }
 }

@@ -7,7 +7,7 @@
 
 use bytemuck::Zeroable;
 use fluidcast_plan::BundleSummary;
-use fluidcast_render::{plan_surface, RenderParams};
+use fluidcast_render::{plan_surface, RenderParams, RenderStats};
 use fluidcast_sph::Particles;
 use fluidcast_view::TransferFunction;
 
@@ -155,7 +155,7 @@ impl Gpu {
     }
 
     /// The plan's statistics (into `ctx`), and its per-bundle summaries (none without a
-    /// tolerance).
+    /// tolerance), in a round trip of their own.
     pub(crate) fn plan_results(
         &self,
         ctx: &mut FrameCtx,
@@ -163,24 +163,45 @@ impl Gpu {
         cells: u32,
         params: &RenderParams,
     ) -> Result<Vec<BundleSummary>, GpuError> {
-        let nb = ctx.bundles as u64;
-        let size = std::mem::size_of::<PlanCounters>() as u64;
-        let got = self.fetch(&[(&plan.counters, size), (&plan.summaries, 32 * nb)])?;
-        let counters: PlanCounters = bytemuck::pod_read_unaligned(&got[0]);
-        ctx.stats.plan = Some(counters.stats(cells as u64));
-        if params.adaptive.tolerance.is_none() {
-            return Ok(Vec::new());
-        }
-        let s: Vec<[f32; 8]> = cast(&got[1]);
-        Ok(s.iter()
-            .map(|v| BundleSummary {
-                predicted_error: v[0],
-                mean_level: v[1],
-                full: v[2],
-                adapted: v[3],
-                superpixel: v[4],
-                front_sampled: v[5],
-            })
-            .collect())
+        let got = self.fetch(&plan.results(ctx.bundles))?;
+        Ok(plan_read(&mut ctx.stats, &got, cells, params))
     }
+}
+
+impl Plan {
+    /// What [`plan_read`] reads back of the plan of a frame of `bundles` bundles: its
+    /// counters and summaries, and their bytes.
+    pub(crate) fn results(&self, bundles: u32) -> [(&wgpu::Buffer, u64); 2] {
+        let size = std::mem::size_of::<PlanCounters>() as u64;
+        [
+            (&self.counters, size),
+            (&self.summaries, 32 * u64::from(bundles)),
+        ]
+    }
+}
+
+/// The plan's statistics (into `stats`) and per-bundle summaries (none without a tolerance)
+/// from the bytes of [`Plan::results`] read back, for `cells` cells.
+pub(crate) fn plan_read(
+    stats: &mut RenderStats,
+    got: &[Vec<u8>],
+    cells: u32,
+    params: &RenderParams,
+) -> Vec<BundleSummary> {
+    let counters: PlanCounters = bytemuck::pod_read_unaligned(&got[0]);
+    stats.plan = Some(counters.stats(cells as u64));
+    if params.adaptive.tolerance.is_none() {
+        return Vec::new();
+    }
+    let s: Vec<[f32; 8]> = cast(&got[1]);
+    s.iter()
+        .map(|v| BundleSummary {
+            predicted_error: v[0],
+            mean_level: v[1],
+            full: v[2],
+            adapted: v[3],
+            superpixel: v[4],
+            front_sampled: v[5],
+        })
+        .collect()
 }

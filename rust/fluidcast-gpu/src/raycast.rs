@@ -159,7 +159,7 @@ impl Gpu {
             guard: &ctx.guard,
         };
         let (stats, timer) = (&mut ctx.stats, &mut ctx.timer);
-        self.raycast(&casting, params, timer, stats, &mut image)?;
+        self.raycast(&casting, params, (timer, stats), &mut image, &[])?;
         push_stage(&mut ctx.stats, "raycast", ms(t1));
         image.aovs = fluidcast_render::plan_aovs(grid, plan, params.width, params.height);
         self.finish(ctx, image)
@@ -230,15 +230,16 @@ impl Gpu {
     }
 
     /// Stage 5: casts the rays of `b`; the image and the sample count are read back into `image`
-    /// and `stats`.
+    /// and `stats`, in one round trip with the timestamps of the passes so far (into `stats`)
+    /// and with `also` (buffers and bytes), whose bytes are returned.
     pub(crate) fn raycast(
         &self,
         b: &Casting,
         params: &RenderParams,
-        timer: &mut Timer,
-        stats: &mut RenderStats,
+        (timer, stats): (&mut Timer, &mut RenderStats),
         image: &mut Image,
-    ) -> Result<(), GpuError> {
+        also: &[(&wgpu::Buffer, u64)],
+    ) -> Result<Vec<Vec<u8>>, GpuError> {
         let (w, h, d) = (params.width, params.height, params.grid.bundle);
         let n_px = w as u64 * h as u64;
         let groups = (w.div_ceil(d), h.div_ceil(d));
@@ -280,13 +281,16 @@ impl Gpu {
             false => (rgba, 16 * n_px),
         };
         let depth_bytes = if out.depth { 4 * n_px } else { 0 };
-        let parts = [
+        let stamps = self.resolve_timers(timer);
+        let mut parts = vec![
             (&colour.0, colour.1),
             (&depth, depth_bytes),
             (&samples, 4 * bundles),
             (b.guard, 4),
         ];
-        let guarded = self.fetch_with(&parts, |got| {
+        parts.extend(stamps.iter().map(|(buf, bytes)| (buf, *bytes)));
+        parts.extend_from_slice(also);
+        let (guarded, stamped, extra) = self.fetch_with(&parts, |got| {
             image.rgba = match out.half_colour {
                 true => unpack_half(got[0]),
                 false => cast(got[0]),
@@ -298,14 +302,23 @@ impl Gpu {
                 }
             }
             stats.samples = cast::<u32>(got[2]).iter().map(|&s| s as u64).sum();
-            cast::<u32>(got[3])[0] != 0
+            let (stamped, extra) = got[4..].split_at(usize::from(stamps.is_some()));
+            let extra: Vec<Vec<u8>> = extra.iter().map(|b| b.to_vec()).collect();
+            (
+                cast::<u32>(got[3])[0] != 0,
+                stamped.first().map(|b| b.to_vec()),
+                extra,
+            )
         })?;
+        if let Some(bytes) = stamped {
+            self.read_timers(timer, &bytes, stats);
+        }
         // Waiting for the ray caster, then copying the image back (included in `raycast`).
         push_stage(stats, "readback", ms(t));
         if guarded {
             return Err(self.loop_limit_error("the grid, the error analysis or the ray casting"));
         }
-        Ok(())
+        Ok(extra)
     }
 }
 

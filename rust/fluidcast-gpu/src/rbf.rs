@@ -232,7 +232,7 @@ impl Gpu {
         if guarded {
             return Err(self.loop_limit_error("the RBF field's point queries"));
         }
-        self.finish_timers(&timer, &mut stats)?;
+        self.finish_timers(&mut timer, &mut stats)?;
         push_stage(&mut stats, "total", ms(t0));
         stats.gpu_memory_bytes = self.memory_bytes();
         stats.transfers = self.take_traffic();
