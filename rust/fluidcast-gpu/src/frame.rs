@@ -138,52 +138,83 @@ impl Gpu {
         if n as u64 * 32 > self.max_binding {
             return Err(GpuError::TooManyParticles(n, self.max_binding / 32));
         }
-        let mut ctx = self.frame_ctx(&frame, params, tf, n);
+        // Without waiting for the cell count where an earlier frame's gives a capacity; made
+        // again with the count known where the cells passed it.
+        let scene = (particles, surface, tf);
+        if let Some(done) = self.frame_once(scene, &frame, params, (dump, true))? {
+            return Ok(done);
+        }
+        let again = self.frame_once(scene, &frame, params, (dump, false))?;
+        again.ok_or_else(|| GpuError::Device("the cell count changed between two runs".into()))
+    }
+
+    /// One run of a frame; `None` where, with `defer_count`, the cells passed the capacity
+    /// the plan was given ([`Gpu::grid`]).
+    fn frame_once(
+        &self,
+        (particles, surface, tf): (&Particles, Option<&[bool]>, &TransferFunction),
+        frame: &ViewFrame,
+        params: &RenderParams,
+        (dump, defer_count): (bool, bool),
+    ) -> Result<Option<(Rendered, Option<GpuDump>)>, GpuError> {
+        let mut ctx = self.frame_ctx(frame, params, tf, particles.len());
         let mut image = Image::new(params.width, params.height);
-        let Some(grid) = self.grid(&mut ctx, particles, &frame, params)? else {
-            return Ok((self.finish(ctx, image)?, dump.then(GpuDump::default)));
+        let Some(grid) = self.grid(&mut ctx, particles, frame, (params, defer_count))? else {
+            return Ok(Some((
+                self.finish(ctx, image)?,
+                dump.then(GpuDump::default),
+            )));
         };
         let t1 = Instant::now();
         let plan = self.plan(&mut ctx, &grid, particles, surface, tf, params)?;
         push_stage(&mut ctx.stats, "adapt", ms(t1));
         let refine = match params.adaptive.tolerance {
-            Some(e) if interpolate::applies(particles, &frame, params) => Some(e),
+            Some(e) if interpolate::applies(particles, frame, params) => Some(e),
             _ => None,
         };
         let t2 = Instant::now();
         let summaries = match refine {
-            Some(e) => self.refine(&mut ctx, (&grid, &plan), (&frame, params, e), &mut image)?,
+            Some(e) => self.refine(&mut ctx, (&grid, &plan), (frame, params, e), &mut image)?,
             None => {
-                // One round trip after the plan and the ray caster: the image, with the plan's
-                // statistics and summaries and the timestamps.
+                // One round trip after the plan and the ray caster: the image, with the cell
+                // count, the plan's statistics and summaries and the timestamps.
                 let casting = grid.casting(&plan, &ctx.frame_buf, &ctx.guard);
                 let (timer, stats) = (&mut ctx.timer, &mut ctx.stats);
-                let also = plan.results(ctx.bundles);
+                let mut also = plan.results(ctx.bundles).to_vec();
+                also.extend(grid.count_part());
                 let got = self.raycast(&casting, params, (timer, stats), &mut image, &also)?;
-                plan_read(&mut ctx.stats, &got, grid.cells_n, params)
+                self.cells_read(&mut ctx, &grid, got.get(2))?
+                    .map(|cells| plan_read(&mut ctx.stats, &got, cells, params))
             }
+        };
+        let Some(summaries) = summaries else {
+            return Ok(None);
         };
         push_stage(&mut ctx.stats, "raycast", ms(t2));
         let (d, w, h) = (params.grid.bundle, params.width, params.height);
         image.aovs = fluidcast_render::bundle_aovs(&summaries, d, w, h);
+        let cells = ctx.u.n_cells;
         let dumped = match dump {
-            true => Some(self.dump(&grid, &plan, ctx.bundles)?),
+            true => Some(self.dump(&grid, &plan, (ctx.bundles, cells))?),
             false => None,
         };
-        Ok((self.finish(ctx, image)?, dumped))
+        Ok(Some((self.finish(ctx, image)?, dumped)))
     }
 
     /// The relaxed mode's image-space refinement ([`interpolate::cast_refined`]): the plan's
     /// summaries (which bundles to refine) read back first, then each pass cast on the GPU and
-    /// read back at full precision, from which the host decides. Returns the summaries.
+    /// read back at full precision, from which the host decides. Returns the summaries; `None`
+    /// where the cells passed the plan's capacity (see [`Gpu::plan_results`]).
     fn refine(
         &self,
         ctx: &mut FrameCtx,
         (grid, plan): (&Grid, &Plan),
         (frame, params, e): (&ViewFrame, &RenderParams, f64),
         image: &mut Image,
-    ) -> Result<Vec<BundleSummary>, GpuError> {
-        let summaries = self.plan_results(ctx, plan, grid.cells_n, params)?;
+    ) -> Result<Option<Vec<BundleSummary>>, GpuError> {
+        let Some(summaries) = self.plan_results(ctx, grid, plan, params)? else {
+            return Ok(None);
+        };
         // The passes give each pixel a depth range in the depth-limit buffer, which the
         // shader reads with bit 0 set (the plan, which reads it too, has run).
         ctx.u.has_limit |= 1;
@@ -208,7 +239,7 @@ impl Gpu {
         let counts = interpolate::cast_refined(params, frame, e, &bundles, image, &mut cast)?;
         (stats.samples, stats.interpolated) = (samples, counts.interpolated);
         stats.stages.extend(counts.stages);
-        Ok(summaries)
+        Ok(Some(summaries))
     }
 
     /// Timestamps, memory and the total time into the statistics.
@@ -224,8 +255,13 @@ impl Gpu {
     }
 
     /// The grid and plan as the GPU built them.
-    fn dump(&self, grid: &Grid, plan: &Plan, bundles: u32) -> Result<GpuDump, GpuError> {
-        let (nc, nb) = (grid.cells_n as u64, bundles as u64);
+    fn dump(
+        &self,
+        grid: &Grid,
+        plan: &Plan,
+        (bundles, cells): (u32, u32),
+    ) -> Result<GpuDump, GpuError> {
+        let (nc, nb) = (u64::from(cells), u64::from(bundles));
         let got = self.fetch(&[
             (&grid.cells, 32 * nc),
             (&grid.refs, 4 * grid.pairs),

@@ -13,7 +13,7 @@ use fluidcast_sph::Particles;
 use fluidcast_view::ViewFrame;
 
 use crate::frame::FrameCtx;
-use crate::layout::GridCounters;
+use crate::layout::{FrameUniform, GridCounters};
 use crate::plan::Plan;
 use crate::raycast::Casting;
 use crate::{push_stage, Gpu, GpuError, RW};
@@ -29,7 +29,13 @@ pub(crate) struct Grid {
     pub(crate) depths: wgpu::Buffer,
     /// Non-empty cells, by bundle and depth (`Cell` in common.wgsl).
     pub(crate) cells: wgpu::Buffer,
-    pub(crate) cells_n: u32,
+    /// Their number, where it was read back before the plan (see [`Gpu::grid`]).
+    pub(crate) cells_n: Option<u32>,
+    /// The most cells the plan's buffers hold: the count where it is known, else a capacity
+    /// from the last frame's count, which the frame checks when it reads the count back.
+    pub(crate) cell_capacity: u32,
+    /// grid.wgsl's counters (`GridCounters`).
+    pub(crate) counters: wgpu::Buffer,
     /// Particle indices grouped by cell.
     pub(crate) refs: wgpu::Buffer,
     pub(crate) pairs: u64,
@@ -38,6 +44,13 @@ pub(crate) struct Grid {
 }
 
 impl Grid {
+    /// The counters' bytes to read back with what a frame reads next, for [`Gpu::cells_read`]:
+    /// none where the grid read the cell count already.
+    pub(crate) fn count_part(&self) -> Option<(&wgpu::Buffer, u64)> {
+        let size = std::mem::size_of::<GridCounters>() as u64;
+        self.cells_n.is_none().then_some((&self.counters, size))
+    }
+
     /// What the ray caster reads of this grid and `plan`, with the frame's uniform and
     /// loop guard.
     pub(crate) fn casting<'a>(
@@ -98,13 +111,17 @@ pub(crate) fn particles_key(p: &Particles) -> u128 {
 }
 
 impl Gpu {
-    /// Builds the grid; `None` when nothing is in view (the image stays empty).
+    /// Builds the grid; `None` when nothing is in view (the image stays empty). With
+    /// `defer_count`, where an earlier frame's cell count gives a capacity
+    /// ([`Gpu::cell_capacity`]), the cell count is not waited for: the device copies it into
+    /// the frame's uniform (`n_cells`) and the caller reads it back later
+    /// ([`Gpu::cells_counted`]).
     pub(crate) fn grid(
         &self,
         ctx: &mut FrameCtx,
         particles: &Particles,
         frame: &ViewFrame,
-        params: &RenderParams,
+        (params, defer_count): (&RenderParams, bool),
     ) -> Result<Option<Grid>, GpuError> {
         let t = Instant::now();
         let n = particles.len() as u32;
@@ -124,7 +141,16 @@ impl Gpu {
             return Ok(None);
         }
         let pairs = fp.pairs;
-        let (cells, cells_n, refs) = self.cells(ctx, &counters, &fp, n)?;
+        let (cells, refs) = self.cells(ctx, &counters, &fp, n)?;
+        let capacity = self.cell_capacity(pairs).filter(|_| defer_count);
+        let (cells_n, cell_capacity) = match capacity {
+            Some(c) => (None, c),
+            None => {
+                let count = self.counters(&counters)?.cells;
+                self.cells_counted(ctx, count)?;
+                (Some(count), count)
+            }
+        };
         push_stage(&mut ctx.stats, "grid", ms(t));
         let bundle_cells = self.buffer("bundle cells", 4 * (ctx.bundles as u64 + 1), RW, None);
         Ok(Some(Grid {
@@ -132,6 +158,8 @@ impl Gpu {
             depths,
             cells,
             cells_n,
+            cell_capacity,
+            counters,
             refs,
             pairs,
             bundle_cells,
@@ -250,15 +278,15 @@ impl Gpu {
         })
     }
 
-    /// Stage 3: the pairs, sorted by (bundle, depth, merge bit), and the cells; returns the cells,
-    /// their number and the particle references.
+    /// Stage 3: the pairs, sorted by (bundle, depth, merge bit), and the cells, whose count the
+    /// device copies into the frame's uniform; returns the cells and the particle references.
     fn cells(
         &self,
         ctx: &mut FrameCtx,
         counters: &wgpu::Buffer,
         fp: &Footprints,
         n: u32,
-    ) -> Result<(wgpu::Buffer, u32, wgpu::Buffer), GpuError> {
+    ) -> Result<(wgpu::Buffer, wgpu::Buffer), GpuError> {
         let pairs = fp.pairs;
         let np = pairs as u32;
         let keys = self.buffer("keys", 4 * pairs, RW, None);
@@ -299,19 +327,46 @@ impl Gpu {
         ];
         self.dispatch(&mut pass, &self.pipes.make_cells, &binds, np.div_ceil(256))?;
         drop(pass);
+        let (from, to) = (
+            std::mem::offset_of!(GridCounters, cells) as u64,
+            std::mem::offset_of!(FrameUniform, n_cells) as u64,
+        );
+        enc.copy_buffer_to_buffer(counters, from, frame, to, 4);
         self.submit(enc);
-        let cells_n = self.counters(counters)?.cells;
-        ctx.stats.cells = cells_n as u64;
+        Ok((cells, refs))
+    }
+
+    /// The cells a frame's plan buffers hold without waiting for the count: half as many again
+    /// as the last frame's and 1024 more (an orbit's views, a ParaView camera move, a series'
+    /// next time step differ by less), at most `pairs`, within a binding of the plan's cell
+    /// bounds; `None` before any frame, or past the binding.
+    pub(crate) fn cell_capacity(&self, pairs: u64) -> Option<u32> {
+        let last = *self
+            .cells_hint
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let capacity = (u64::from(last) * 3 / 2 + 1024).min(pairs);
+        let fits = capacity * BOUND_BYTES <= self.max_binding && capacity * 32 <= self.max_binding;
+        (last > 0 && fits).then_some(capacity as u32)
+    }
+
+    /// The frame's cell count, read back: into the statistics, the uniform's host copy and the
+    /// next frame's capacity; refused where the cells overflow one binding.
+    pub(crate) fn cells_counted(&self, ctx: &mut FrameCtx, count: u32) -> Result<(), GpuError> {
+        *self
+            .cells_hint
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = count;
+        ctx.stats.cells = u64::from(count);
         // The cells themselves (32 bytes each); the plan's analysis checks its own buffers.
-        if cells_n as u64 * 32 > self.max_binding {
+        if u64::from(count) * 32 > self.max_binding {
             return Err(GpuError::TooManyCells(
-                cells_n as u64,
+                u64::from(count),
                 self.max_binding / 32,
             ));
         }
-        ctx.u.n_cells = cells_n;
-        ctx.update(self);
-        Ok((cells, cells_n, refs))
+        ctx.u.n_cells = count;
+        Ok(())
     }
 
     /// Each bundle's cell range (`bundle_ranges`), recorded into the plan's first pass.
@@ -337,7 +392,7 @@ impl Gpu {
     }
 
     /// grid.wgsl's counters, read back.
-    fn counters(&self, b: &wgpu::Buffer) -> Result<GridCounters, GpuError> {
+    pub(crate) fn counters(&self, b: &wgpu::Buffer) -> Result<GridCounters, GpuError> {
         let size = std::mem::size_of::<GridCounters>() as u64;
         self.fetch_with(&[(b, size)], |got| bytemuck::pod_read_unaligned(got[0]))
     }

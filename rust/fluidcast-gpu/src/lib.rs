@@ -217,6 +217,9 @@ pub struct Gpu {
     /// A fingerprint of the particles in the "world particles" buffer, which a frame of the
     /// same particles uses again without uploading them ([`grid::particles_key`]).
     world_key: Mutex<Option<u128>>,
+    /// The last frame's cell count, from which the next frame sizes its plan without waiting
+    /// for its own ([`Gpu::cell_capacity`]).
+    cells_hint: Mutex<u32>,
     /// Largest storage buffer binding (bytes).
     max_binding: u64,
     /// Loop iterations a shader invocation may run (`SOFTWARE_LOOP_LIMIT` on CPU adapters,
@@ -314,6 +317,7 @@ impl Gpu {
             frame_lock: Mutex::new(()),
             traffic: Default::default(),
             world_key: Default::default(),
+            cells_hint: Default::default(),
             max_binding: limits
                 .max_storage_buffer_binding_size
                 .min(limits.max_buffer_size),

@@ -13,7 +13,7 @@ use fluidcast_view::TransferFunction;
 
 use crate::frame::FrameCtx;
 use crate::grid::{Grid, BOUND_BYTES};
-use crate::layout::PlanCounters;
+use crate::layout::{GridCounters, PlanCounters};
 use crate::{cast, Gpu, GpuError, RW};
 
 /// The plan of one frame.
@@ -48,7 +48,7 @@ impl Gpu {
         tf: &TransferFunction,
         params: &RenderParams,
     ) -> Result<Plan, GpuError> {
-        let (nc, nb) = (grid.cells_n as u64, ctx.bundles as u64);
+        let (nc, nb) = (u64::from(grid.cell_capacity), ctx.bundles as u64);
         if nc * BOUND_BYTES > self.max_binding {
             return Err(GpuError::TooManyCells(nc, self.max_binding / BOUND_BYTES));
         }
@@ -125,7 +125,8 @@ impl Gpu {
             ("info", &a.info),
             ("guard", &ctx.guard),
         ];
-        self.dispatch(pass, &self.pipes.analyse, &binds, grid.cells_n)
+        // One workgroup a cell the buffers hold; those past the count return at once.
+        self.dispatch(pass, &self.pipes.analyse, &binds, grid.cell_capacity)
     }
 
     fn greedy(
@@ -154,17 +155,42 @@ impl Gpu {
         self.dispatch(pass, &self.pipes.greedy, &binds, ctx.bundles.div_ceil(64))
     }
 
-    /// The plan's statistics (into `ctx`), and its per-bundle summaries (none without a
-    /// tolerance), in a round trip of their own.
+    /// The grid's cell count, the plan's statistics (into `ctx`) and its per-bundle summaries
+    /// (none without a tolerance), in a round trip of their own; `None` where the cells
+    /// overflowed the plan's capacity ([`Gpu::cells_read`]).
     pub(crate) fn plan_results(
         &self,
         ctx: &mut FrameCtx,
+        grid: &Grid,
         plan: &Plan,
-        cells: u32,
         params: &RenderParams,
-    ) -> Result<Vec<BundleSummary>, GpuError> {
-        let got = self.fetch(&plan.results(ctx.bundles))?;
-        Ok(plan_read(&mut ctx.stats, &got, cells, params))
+    ) -> Result<Option<Vec<BundleSummary>>, GpuError> {
+        let mut parts = plan.results(ctx.bundles).to_vec();
+        parts.extend(grid.count_part());
+        let got = self.fetch(&parts)?;
+        let Some(cells) = self.cells_read(ctx, grid, got.get(2))? else {
+            return Ok(None);
+        };
+        Ok(Some(plan_read(&mut ctx.stats, &got, cells, params)))
+    }
+
+    /// The cell count: the grid's, or where the grid did not wait for it, from grid.wgsl's
+    /// counters read back (`bytes`, [`Grid::count_part`]): `None` where it passed the plan's
+    /// capacity (the frame is to be made again, with the count known), else the count, as
+    /// [`Gpu::cells_counted`] takes it.
+    pub(crate) fn cells_read(
+        &self,
+        ctx: &mut FrameCtx,
+        grid: &Grid,
+        bytes: Option<&Vec<u8>>,
+    ) -> Result<Option<u32>, GpuError> {
+        if let Some(n) = grid.cells_n {
+            return Ok(Some(n));
+        }
+        let bytes = bytes.ok_or_else(|| GpuError::Device("the cell count was not read".into()))?;
+        let counters: GridCounters = bytemuck::pod_read_unaligned(bytes);
+        self.cells_counted(ctx, counters.cells)?;
+        Ok((counters.cells <= grid.cell_capacity).then_some(counters.cells))
     }
 }
 

@@ -134,7 +134,7 @@ impl Gpu {
         let mut ctx = self.frame_ctx(&frame, params, tf, n);
         let mut image = Image::new(w, h);
         let n_px = u64::from(w) * u64::from(h);
-        let Some(grid) = self.grid(&mut ctx, particles, &frame, params)? else {
+        let Some(grid) = self.grid(&mut ctx, particles, &frame, (params, false))? else {
             add_normal_aovs(&mut image, &vec![[0.0; 3]; n_px as usize]);
             return Ok((image, self.finish(ctx, Image::new(0, 0))?.stats));
         };

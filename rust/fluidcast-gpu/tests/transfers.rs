@@ -122,21 +122,27 @@ fn display_output_reads_back_half_colour_and_no_depth() {
     }
 }
 
-/// On hardware (no loop limit) a full-rate frame waits for the device three times: the pair
-/// count, the cell count, and the image, which comes back with the plan's summaries and the
-/// timestamps (they took two waits of their own before). On a software driver each resumed
-/// dispatch adds one.
+/// Waits for the device beyond the resumed dispatches a software driver needs.
+fn waits(g: &Gpu, r: &Rendered) -> u64 {
+    let resumed = match g.is_software() {
+        true => r.stats.dispatches,
+        false => 0,
+    };
+    r.stats.transfers.waits - resumed
+}
+
+/// On hardware (no loop limit) a device's first full-rate frame waits for it three times: the
+/// pair count, the cell count, and the image, which comes back with the plan's summaries and
+/// the timestamps (they took two waits of their own before). A later frame sizes its plan from
+/// the last cell count and reads its own with the image: two waits. On a software driver each
+/// resumed dispatch adds one.
 #[test]
 fn a_frame_counts_its_waits_and_submits() {
     let Some(g) = gpu() else { return };
     let p = cloud(2000, 13);
     let r = render(&g, &p, &params(ImageOutput::FULL, None));
     let t = r.stats.transfers;
-    let resumed = match g.is_software() {
-        true => r.stats.dispatches,
-        false => 0,
-    };
-    assert_eq!(t.waits, 3 + resumed, "{t:?}");
+    assert_eq!(waits(&g, &r), 3, "{t:?}");
     // The plan's statistics and the timestamps came back with the image.
     assert!(r.stats.plan.is_some(), "{:?}", r.stats);
     assert_eq!(
@@ -149,4 +155,59 @@ fn a_frame_counts_its_waits_and_submits() {
         t.submits >= t.waits && t.readback_bytes >= 16 * u64::from(W * H),
         "{t:?}"
     );
+    let again = render(&g, &p, &params(ImageOutput::FULL, None));
+    assert_eq!(waits(&g, &again), 2, "{:?}", again.stats.transfers);
+    assert_eq!(again.stats.cells, r.stats.cells);
+    assert_eq!(again.image.rgba, r.image.rgba);
+    assert!(r.image.rgba.iter().any(|c| c[3] > 0.05), "nothing drawn");
+}
+
+/// A frame with many more cells than the last passes the capacity its plan was sized for
+/// from the last count; it is made again with its own count known (the waits of a device's
+/// first frame), and draws what a device that never saw the small frame draws; the next frame
+/// fits (one wait fewer), at full rate and with the relaxed mode's refinement.
+#[test]
+fn a_frame_past_the_last_cell_count_is_made_again() {
+    let Some(g) = gpu() else { return };
+    let p = cloud(3000, 14);
+    for tolerance in [None, Some(0.004)] {
+        let small = RenderParams {
+            width: 16,
+            height: 12,
+            ..params(ImageOutput::FULL, tolerance)
+        };
+        let large = RenderParams {
+            width: 320,
+            height: 240,
+            ..params(ImageOutput::FULL, tolerance)
+        };
+        let fresh = render(&gpu().unwrap(), &p, &large);
+        let drawn = fresh.image.rgba.iter().filter(|c| c[3] > 0.05).count();
+        assert!(
+            drawn > fresh.image.rgba.len() / 20,
+            "{tolerance:?}: {drawn} pixels drawn"
+        );
+        let s = render(&g, &p, &small);
+        let l = render(&g, &p, &large);
+        assert!(
+            l.stats.cells > 3 * s.stats.cells / 2 + 1024,
+            "{tolerance:?}: cells {} after {}: within the capacity",
+            l.stats.cells,
+            s.stats.cells
+        );
+        // As many waits as a device's first frame (three, and with the refinement its
+        // passes' and the plan's summaries'), one more than a frame that fits.
+        let first = waits(&g, &fresh);
+        assert_eq!(
+            waits(&g, &l),
+            first,
+            "{tolerance:?}: {:?}",
+            l.stats.transfers
+        );
+        assert_eq!(l.stats.cells, fresh.stats.cells);
+        assert_eq!(l.image.rgba, fresh.image.rgba, "{tolerance:?}");
+        let again = render(&g, &p, &large);
+        assert_eq!(again.image.rgba, fresh.image.rgba, "{tolerance:?}");
+        assert_eq!(waits(&g, &again), first - 1, "{tolerance:?}");
+    }
 }
