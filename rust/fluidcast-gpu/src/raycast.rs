@@ -8,7 +8,7 @@ use bytemuck::Zeroable;
 use fluidcast_grid::PerspectiveGrid;
 use fluidcast_image::Image;
 use fluidcast_plan::SamplingPlan;
-use fluidcast_render::{ms, AdaptivePlan, RenderParams, RenderStats, Rendered};
+use fluidcast_render::{ms, AdaptivePlan, ImageOutput, RenderParams, RenderStats, Rendered};
 use fluidcast_view::TransferFunction;
 
 use crate::frame::check_supported;
@@ -87,6 +87,16 @@ fn gpu_layout(grid: &PerspectiveGrid, plan: &SamplingPlan) -> Uploaded {
     }
     up.bundle_cells.push(up.cells.len() as u32);
     up
+}
+
+/// What the ray caster wrote on the device: RGBA (f32) and depth of `n_px` pixels, the
+/// samples of `bundles` bundles.
+struct CastOut {
+    rgba: wgpu::Buffer,
+    depth: wgpu::Buffer,
+    samples: wgpu::Buffer,
+    n_px: u64,
+    bundles: u64,
 }
 
 /// `resume[1 + b]` before bundle b's first dispatch (raycast.wgsl's RESUME_FRESH).
@@ -274,8 +284,41 @@ impl Gpu {
         ];
         let flags = (&resume, b.guard);
         stats.dispatches += self.cast_bands(timer, &binds, (groups, rows), flags)?;
+        let cast_out = CastOut {
+            rgba,
+            depth,
+            samples,
+            n_px,
+            bundles,
+        };
+        self.read_back(
+            cast_out,
+            (b.guard, params.output),
+            (timer, stats),
+            image,
+            also,
+        )
+    }
+
+    /// The ray caster's image, sample counts and loop guard (`guard`) read back into `image`
+    /// and `stats`, as `out` asks, in one round trip with the timestamps of the passes so far
+    /// and with `also`, whose bytes are returned.
+    fn read_back(
+        &self,
+        cast_out: CastOut,
+        (guard, out): (&wgpu::Buffer, ImageOutput),
+        (timer, stats): (&mut Timer, &mut RenderStats),
+        image: &mut Image,
+        also: &[(&wgpu::Buffer, u64)],
+    ) -> Result<Vec<Vec<u8>>, GpuError> {
+        let CastOut {
+            rgba,
+            depth,
+            samples,
+            n_px,
+            bundles,
+        } = cast_out;
         let t = Instant::now();
-        let out = params.output;
         let colour = match out.half_colour {
             true => (self.pack_half(timer, &rgba, n_px)?, 8 * n_px),
             false => (rgba, 16 * n_px),
@@ -286,7 +329,7 @@ impl Gpu {
             (&colour.0, colour.1),
             (&depth, depth_bytes),
             (&samples, 4 * bundles),
-            (b.guard, 4),
+            (guard, 4),
         ];
         parts.extend(stamps.iter().map(|(buf, bytes)| (buf, *bytes)));
         parts.extend_from_slice(also);
