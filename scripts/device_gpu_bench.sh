@@ -34,6 +34,9 @@ for f in .devrun/*.vtu .devrun/*.vtp; do
   echo "=== $f: GPU backend, off and 0.004, per-stage GPU timestamps"
   timeout "$T" $FC bench "$f" --array velocity --backend gpu --size "$S" --views 4 \
     --tolerances off,0.004 --no-reference --json "$R/$(basename "$f").json" 2>&1 | tail -12
+  echo "=== $f: the same without subgroup operations (scans and sort in workgroup memory)"
+  FLUIDCAST_GPU_SUBGROUPS=0 timeout "$T" $FC bench "$f" --array velocity --backend gpu \
+    --size "$S" --views 2 --tolerances off --no-reference 2>&1 | tail -4
   echo "=== $f: iso 0.5 and RBF with shadows (4 spp) on the GPU backend"
   timeout "$T" $FC render "$f" --array velocity --backend gpu --iso 0.5 --size "$S" \
     -o "$R/iso.png" --stats "$R/$(basename "$f").iso.json" 2>&1 | tail -2
