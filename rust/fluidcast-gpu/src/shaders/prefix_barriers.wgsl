@@ -31,21 +31,3 @@ fn prefix_v4(v: vec4<u32>, l: Lane) -> vec4<u32> {
     }
     return prefix_tmp[l.li] - v;
 }
-
-var<workgroup> prefix_tmp_u32: array<u32, 256>;
-
-// `prefix_v4` of one u32: a quarter of its workgroup memory traffic (the scans of the grid).
-fn prefix_u32(v: u32, l: Lane) -> u32 {
-    prefix_tmp_u32[l.li] = v;
-    workgroupBarrier();
-    for (var o = 1u; o < 256u; o = o * 2u) {
-        var t = 0u;
-        if (l.li >= o) {
-            t = prefix_tmp_u32[l.li - o];
-        }
-        workgroupBarrier();
-        prefix_tmp_u32[l.li] = prefix_tmp_u32[l.li] + t;
-        workgroupBarrier();
-    }
-    return prefix_tmp_u32[l.li] - v;
-}

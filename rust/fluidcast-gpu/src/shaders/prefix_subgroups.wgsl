@@ -37,8 +37,3 @@ fn prefix_v4(v: vec4<u32>, l: Lane) -> vec4<u32> {
     workgroupBarrier();
     return before + own;
 }
-
-// `prefix_v4` of one u32 (the scans of the grid).
-fn prefix_u32(v: u32, l: Lane) -> u32 {
-    return prefix_v4(vec4<u32>(v, 0u, 0u, 0u), l).x;
-}

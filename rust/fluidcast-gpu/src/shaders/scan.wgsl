@@ -24,7 +24,7 @@ fn scan_blocks(@builtin(workgroup_id) wg: vec3<u32>, @builtin(num_workgroups) nw
     if (i < S.n) {
         v = data[i];
     }
-    let before = prefix_u32(v, lane);
+    let before = prefix_v4(vec4<u32>(v, 0u, 0u, 0u), lane).x;
     if (i < S.n) {
         data[i] = before;
     }
