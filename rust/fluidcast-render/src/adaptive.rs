@@ -374,8 +374,8 @@ impl pulp::WithSimd for Composite<'_> {
                 }
             }
             self.steps.end_ray();
-            self.sums.clear(slot);
         }
+        self.sums.clear();
         self.steps.shade(self.tf, self.params.field);
         self.steps.correct(self.tf.tf);
         for (slot, &r) in self.cast.iter().enumerate() {

@@ -272,13 +272,16 @@ impl SpanDepths {
 }
 
 /// Kernel sums of a bundle's rays at a span's samples: `num` the rendered sum (Σ V·q·W for
-/// CSPH and SPH, Σ m·W for density), `den` the Shepard sum Σ V·W, each `[sample][slot]`; per
-/// slot the sample range any particle may have touched.
+/// CSPH and SPH, Σ m·W for density), `den` the Shepard sum Σ V·W, each `[group][sample][lane]`
+/// (a lane group's samples side by side, see [`SpanSums::index`]); per lane group the sample
+/// range any particle may have touched.
 #[derive(Debug, Clone)]
 pub(crate) struct SpanSums {
-    stride: usize,
+    /// Samples a span may have (the capacity of a group's block).
+    samples: usize,
     num: Vec<f32>,
     den: Vec<f32>,
+    /// Per lane group: the samples any particle may have touched, the union over its lanes.
     touched: Vec<(usize, usize)>,
 }
 
@@ -286,10 +289,10 @@ impl SpanSums {
     /// Sums for `slots` rays (at least [`BundleRays::slots`]) and up to `samples` samples.
     pub fn new(slots: usize, samples: usize) -> SpanSums {
         SpanSums {
-            stride: slots,
+            samples,
             num: vec![0.0; slots * samples],
             den: vec![0.0; slots * samples],
-            touched: vec![(usize::MAX, 0); slots],
+            touched: vec![(usize::MAX, 0); slots.div_ceil(LANES)],
         }
     }
 
@@ -333,7 +336,7 @@ impl SpanSums {
             let slot = g * LANES;
             let live = &live[slot..][..LANES];
             if let Some(near) = group.near(p, live, z_org) {
-                self.touch(slot, &near, &at.ks);
+                self.touch(slot, &at.ks);
                 match kernel {
                     Kernel::CubicSpline => {
                         self.add(simd, |q| cubic(simd, q), &at, &near, &zs.rel, slot)
@@ -361,21 +364,19 @@ impl SpanSums {
         }
     }
 
-    /// Widens the touched ranges of the lanes `near` reaches to the samples `ks`. Without a
-    /// branch per lane: which lanes a particle reaches is data that a branch predicts
-    /// poorly: a branch here missed 15 M times on a 227k-particle dam break at 1024 × 768 at
-    /// full rate (callgrind), and the bench's full-rate render took 1.54–1.64 s in runs just
-    /// after it went, 1.96–2.14 s just before (not alternating, so partly the machine).
+    /// Widens the touched range of the lane group at `slot` to the samples `ks`: one range
+    /// per group, not per lane. Per lane (the range of each lane the particle reached), the
+    /// compiler made the update branch-free with masked stores (`vpmaskmovq`), which are slow
+    /// on AMD's cores; with a branch per lane instead, the branch missed 15 M times on a
+    /// 227k-particle dam break at 1024 × 768. One range per group took that frame's full-rate
+    /// ray casting, on one thread, from 1,418 ms to 1,251 ms (medians of 3 views, 2 runs each,
+    /// the same image). The rays of a group are neighbours; a sample in the group's range that
+    /// a lane's particles missed costs that ray's compositing one comparison
+    /// ([`SpanSums::at`]).
     #[inline(always)]
-    fn touch(&mut self, slot: usize, near: &Near, ks: &Range<usize>) {
-        for (tc, &m) in self.touched[slot..][..LANES].iter_mut().zip(&near.mask) {
-            let on = m != 0.0;
-            let (lo, hi) = if on {
-                (ks.start, ks.end)
-            } else {
-                (usize::MAX, 0)
-            };
-            *tc = (tc.0.min(lo), tc.1.max(hi));
+    fn touch(&mut self, slot: usize, ks: &Range<usize>) {
+        if let Some(tc) = self.touched.get_mut(slot / LANES) {
+            *tc = (tc.0.min(ks.start), tc.1.max(ks.end));
         }
     }
 
@@ -415,11 +416,19 @@ impl SpanSums {
         let (dd, _) = S::as_simd_f32s(&near.dd);
         let (mask, _) = S::as_simd_f32s(&near.mask);
         let (wn, wd) = (simd.splat_f32s(at.w[0]), simd.splat_f32s(at.w[1]));
-        for k in at.ks.clone() {
-            let z = simd.splat_f32s(zs[k]);
-            let i = k * self.stride + slot;
-            let (num, _) = S::as_mut_simd_f32s(&mut self.num[i..][..LANES]);
-            let (den, _) = S::as_mut_simd_f32s(&mut self.den[i..][..LANES]);
+        // The group's rows of the sums, borrowed once: indexing `self.num` per sample reloaded
+        // both vectors' pointers and lengths and checked two ranges each time (the stores
+        // might have changed them, as far as the compiler knew): 45 instructions a sample
+        // before, 22 now, though only about 2 % of the time (the square root and the stores
+        // bound the loop).
+        let ks = at.ks.clone();
+        let rows = self.index(ks.start, slot)..self.index(ks.end, slot);
+        let num_rows = self.num[rows.clone()].chunks_exact_mut(LANES);
+        let den_rows = self.den[rows].chunks_exact_mut(LANES);
+        for ((num, den), &z) in num_rows.zip(den_rows).zip(&zs[ks]) {
+            let z = simd.splat_f32s(z);
+            let (num, _) = S::as_mut_simd_f32s(num);
+            let (den, _) = S::as_mut_simd_f32s(den);
             for c in 0..num.len().min(den.len()).min(t.len()) {
                 let w = [simd.mul_f32s(wn, mask[c]), simd.mul_f32s(wd, mask[c])];
                 step(z, t[c], r2[c], dd[c], w, &mut num[c], &mut den[c]);
@@ -427,9 +436,21 @@ impl SpanSums {
         }
     }
 
-    /// The samples any particle may have touched for the ray in `slot`.
+    /// Where sample `k` of `slot`'s ray is held: its group's block of `samples` × [`LANES`],
+    /// sample-major within it, so that a particle's samples of a lane group, and what a span
+    /// touched of a group ([`SpanSums::clear`]), are consecutive vectors. (Sample-major across
+    /// the bundle, `[sample][slot]`, they were a bundle's width apart; no faster or slower
+    /// alone, within the runs' spread.)
+    #[inline(always)]
+    fn index(&self, k: usize, slot: usize) -> usize {
+        let (group, lane) = (slot / LANES, slot % LANES);
+        (group * self.samples + k) * LANES + lane
+    }
+
+    /// The samples any particle may have touched for the ray in `slot` (and the others of its
+    /// lane group).
     pub fn touched(&self, slot: usize) -> Range<usize> {
-        let (lo, hi) = self.touched[slot];
+        let (lo, hi) = self.touched.get(slot / LANES).copied().unwrap_or((0, 0));
         lo..hi.max(lo)
     }
 
@@ -437,18 +458,23 @@ impl SpanSums {
     /// contributes there; [`field_value`] makes the field value of them.
     #[inline(always)]
     pub fn at(&self, k: usize, slot: usize) -> Option<[f32; 2]> {
-        let i = k * self.stride + slot;
+        let i = self.index(k, slot);
         let s = self.den[i];
         (s > 0.0).then(|| [self.num[i], s])
     }
 
-    /// Zeroes what `slot` touched, ready for the next span.
-    pub fn clear(&mut self, slot: usize) {
-        for k in self.touched(slot) {
-            self.num[k * self.stride + slot] = 0.0;
-            self.den[k * self.stride + slot] = 0.0;
+    /// Zeroes what the span touched, ready for the next span.
+    pub fn clear(&mut self) {
+        for g in 0..self.touched.len() {
+            let Range { start, end } = self.touched(g * LANES);
+            if start >= end {
+                continue;
+            }
+            let rows = self.index(start, g * LANES)..self.index(end, g * LANES);
+            self.num[rows.clone()].fill(0.0);
+            self.den[rows].fill(0.0);
+            self.touched[g] = (usize::MAX, 0);
         }
-        self.touched[slot] = (usize::MAX, 0);
     }
 }
 
