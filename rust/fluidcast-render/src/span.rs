@@ -466,7 +466,7 @@ impl SpanSums {
     /// Zeroes what the span touched, ready for the next span.
     pub fn clear(&mut self) {
         for g in 0..self.touched.len() {
-            let Range { start, end } = self.touched(g * LANES);
+            let (start, end) = self.touched[g];
             if start >= end {
                 continue;
             }
